@@ -1,0 +1,1 @@
+//! The HTTP API (axum): routes, handlers, problem+json errors, OpenAPI.

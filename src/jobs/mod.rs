@@ -1,0 +1,1 @@
+//! Durable jobs: model, SQLite store, runner bridging tokio and the rayon pool.

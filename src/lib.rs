@@ -1,0 +1,29 @@
+//! meshatlas: turns raw surface triangulations into what mesh generators need.
+//!
+//! The numerical core (`geom`, `mesh`, `linalg`, `fem`, `io`, `atlas`,
+//! `crossfield`, `frames`) is synchronous, knows nothing of HTTP or jobs, and
+//! takes a [`progress::Progress`] handle for progress and cancellation.
+//! `pipeline` sequences the stages and writes artifacts; `jobs` runs pipelines
+//! durably on a rayon pool; `http` exposes jobs over axum.
+//!
+//! Dependencies point downward:
+//! `geom ← mesh ← fem ← stages ← pipeline ← jobs ← http ← main`,
+//! with `io`, `linalg` and `progress` used by the core.
+
+pub mod geom;
+pub mod linalg;
+pub mod mesh;
+pub mod progress;
+
+pub mod fem;
+pub mod io;
+
+pub mod atlas;
+pub mod crossfield;
+pub mod frames;
+
+pub mod pipeline;
+
+pub mod jobs;
+
+pub mod http;

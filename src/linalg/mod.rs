@@ -1,0 +1,30 @@
+//! Sparse linear algebra: triplet assembly and factorizations reused across
+//! right-hand sides and Newton steps.
+//!
+//! Matrices are assembled from `(row, col, value)` triplets (duplicates are
+//! summed) into faer's compressed sparse column format. A [`Pattern`] keeps
+//! the symbolic structure and the triplet → slot order, so a matrix with the
+//! same triplet sequence but new values is rebuilt without sorting again, and
+//! a factorization's symbolic phase is reused ([`CholeskySolver::refactor`]).
+//!
+//! Solvers (measured in `../shared/DEPENDENCIES.md` on 2 cores): faer sparse
+//! LU for non-symmetric systems (mean value coordinates), faer sparse LLᵀ for
+//! SPD systems, both with `Par::Seq` inside job workers.
+
+pub mod assembly;
+pub mod error;
+pub mod solvers;
+
+pub use assembly::{Pattern, Triplets};
+pub use error::LinalgError;
+pub use solvers::{CholeskySolver, LuSolver};
+
+/// A sparse matrix in compressed column form.
+pub type SparseMatrix = faer::sparse::SparseColMat<usize, f64>;
+
+/// Run faer's sparse kernels sequentially; call once at start-up. The job
+/// pool already parallelizes across patches and jobs, and on two cores the
+/// nested parallelism was measured slower (DEPENDENCIES.md).
+pub fn use_sequential_kernels() {
+    faer::set_global_parallelism(faer::Par::Seq);
+}

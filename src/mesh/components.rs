@@ -1,0 +1,207 @@
+//! Connected components of triangles (through shared edges) and of vertices.
+//!
+//! Two triangles are connected when they share an edge, whatever its valence;
+//! a pinched vertex alone does not connect (that is a non-manifold vertex).
+//! Components are numbered by their smallest triangle id, so the numbering
+//! is deterministic. Union–find with path halving, near `O(n)`.
+
+use super::{EdgeId, FaceId, Topology, TriMesh, VertexId};
+
+/// Disjoint-set forest over `0..n` (union by size, path halving).
+#[derive(Debug, Clone)]
+pub struct DisjointSets {
+    parent: Vec<u32>,
+    size: Vec<u32>,
+}
+
+impl DisjointSets {
+    /// `n` singletons.
+    pub fn new(n: usize) -> Self {
+        Self { parent: (0..n as u32).collect(), size: vec![1; n] }
+    }
+
+    /// Representative of the set containing `x`.
+    pub fn find(&mut self, mut x: u32) -> u32 {
+        while self.parent[x as usize] != x {
+            let p = self.parent[x as usize];
+            self.parent[x as usize] = self.parent[p as usize];
+            x = self.parent[x as usize];
+        }
+        x
+    }
+
+    /// Merge the sets of `a` and `b`; returns false when already merged.
+    pub fn union(&mut self, a: u32, b: u32) -> bool {
+        let (mut a, mut b) = (self.find(a), self.find(b));
+        if a == b {
+            return false;
+        }
+        if self.size[a as usize] < self.size[b as usize] {
+            std::mem::swap(&mut a, &mut b);
+        }
+        self.parent[b as usize] = a;
+        self.size[a as usize] += self.size[b as usize];
+        true
+    }
+
+    /// Dense labels `0..k` in order of first appearance, and `k`.
+    pub fn labels(&mut self) -> (Vec<u32>, usize) {
+        let n = self.parent.len();
+        let mut label_of_root = vec![u32::MAX; n];
+        let mut labels = vec![0; n];
+        let mut k = 0u32;
+        for x in 0..n as u32 {
+            let r = self.find(x) as usize;
+            if label_of_root[r] == u32::MAX {
+                label_of_root[r] = k;
+                k += 1;
+            }
+            labels[x as usize] = label_of_root[r];
+        }
+        (labels, k as usize)
+    }
+}
+
+/// Edge-connected components of triangles.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Components {
+    /// Component label of each triangle, `0..n_components`.
+    pub component_per_face: Vec<u32>,
+    /// Number of components.
+    pub n_components: usize,
+}
+
+impl Components {
+    /// Triangles of each component, in increasing id order.
+    pub fn faces_per_component(&self) -> Vec<Vec<FaceId>> {
+        let mut out = vec![Vec::new(); self.n_components];
+        for (f, &c) in self.component_per_face.iter().enumerate() {
+            out[c as usize].push(FaceId::new(f));
+        }
+        out
+    }
+}
+
+/// Label triangles by edge-connected component, optionally not crossing the
+/// edges for which `blocked` is true (used to cut model faces along features).
+pub fn face_components(topo: &Topology, blocked: impl Fn(EdgeId) -> bool) -> Components {
+    let mut sets = DisjointSets::new(topo.face_edges.len());
+    for e in 0..topo.n_edges() {
+        let e = EdgeId::new(e);
+        if blocked(e) {
+            continue;
+        }
+        let faces = topo.edge_faces(e);
+        for w in faces.windows(2) {
+            sets.union(w[0].0, w[1].0);
+        }
+    }
+    let (component_per_face, n_components) = sets.labels();
+    Components { component_per_face, n_components }
+}
+
+/// Edge-connected components of the whole mesh.
+pub fn connected_components(topo: &Topology) -> Components {
+    face_components(topo, |_| false)
+}
+
+/// Vertices used by at least one triangle.
+pub fn referenced_vertices(mesh: &TriMesh) -> Vec<bool> {
+    let mut used = vec![false; mesh.n_vertices()];
+    for t in &mesh.triangles {
+        for v in t {
+            used[v.idx()] = true;
+        }
+    }
+    used
+}
+
+/// Non-manifold vertices: vertices whose incident triangles form more than
+/// one fan (triangles around the vertex connected through edges at the vertex).
+/// Returns the vertices, sorted.
+pub fn nonmanifold_vertices(mesh: &TriMesh, topo: &Topology) -> Vec<VertexId> {
+    let mut out = Vec::new();
+    let mut local: Vec<FaceId> = Vec::new();
+    for v in 0..mesh.n_vertices() {
+        let v = VertexId::new(v);
+        local.clear();
+        local.extend_from_slice(topo.vertex_faces(v));
+        if local.len() < 2 {
+            continue;
+        }
+        if count_fans(mesh, topo, v, &local) > 1 {
+            out.push(v);
+        }
+    }
+    out
+}
+
+/// Number of fans of triangles `faces` around `v` (small local union–find).
+fn count_fans(mesh: &TriMesh, topo: &Topology, v: VertexId, faces: &[FaceId]) -> usize {
+    let mut sets = DisjointSets::new(faces.len());
+    for (i, &f) in faces.iter().enumerate() {
+        let t = mesh.triangles[f.idx()];
+        for k in 0..3 {
+            if t[k] != v && t[(k + 1) % 3] != v {
+                continue;
+            }
+            let e = topo.face_edges[f.idx()][k];
+            for g in topo.edge_faces(e) {
+                if let Some(j) = faces.iter().position(|x| x == g) {
+                    sets.union(i as u32, j as u32);
+                }
+            }
+        }
+    }
+    sets.labels().1
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::geom::Vec3;
+    use crate::mesh::fixtures;
+
+    #[test]
+    fn two_tetrahedra_are_two_components() {
+        let a = fixtures::tetrahedron();
+        let mut m = a.clone();
+        let n = m.positions.len() as u32;
+        m.positions.extend(a.positions.iter().map(|p| p + Vec3::new(5.0, 0.0, 0.0)));
+        m.triangles.extend(a.triangles.iter().map(|t| t.map(|v| VertexId(v.0 + n))));
+        let t = Topology::new(&m);
+        let c = connected_components(&t);
+        assert_eq!(c.n_components, 2);
+        assert_eq!(c.faces_per_component()[1].len(), 4);
+    }
+
+    #[test]
+    fn pinched_vertex_is_nonmanifold_and_splits_components() {
+        // Two triangles touching only at vertex 0.
+        let m = TriMesh::from_raw(
+            vec![
+                Vec3::new(0.0, 0.0, 0.0),
+                Vec3::new(1.0, 0.0, 0.0),
+                Vec3::new(1.0, 1.0, 0.0),
+                Vec3::new(-1.0, 0.0, 0.0),
+                Vec3::new(-1.0, -1.0, 0.0),
+            ],
+            &[[0, 1, 2], [0, 3, 4]],
+        );
+        let t = Topology::new(&m);
+        assert_eq!(nonmanifold_vertices(&m, &t), vec![VertexId(0)]);
+        assert_eq!(connected_components(&t).n_components, 2);
+    }
+
+    #[test]
+    fn blocked_edges_cut_components() {
+        let m = fixtures::square(2);
+        let t = Topology::new(&m);
+        let c = face_components(&t, |e| {
+            let [a, b] = t.edges[e.idx()];
+            (m.position(a).x - 0.5).abs() < 1e-12 && (m.position(b).x - 0.5).abs() < 1e-12
+        });
+        assert_eq!(c.n_components, 2);
+        assert!(nonmanifold_vertices(&m, &t).is_empty());
+    }
+}

@@ -1,0 +1,154 @@
+//! Consistent orientation of triangles, per edge-connected component.
+//!
+//! Two triangles sharing an interior edge agree when they traverse it in
+//! opposite directions. A breadth-first walk across interior (valence-2)
+//! edges assigns each triangle a flip bit; per component the smaller set is
+//! flipped, so the count reported is the fewest flips that make the
+//! component consistent. A component whose walk finds a contradiction is
+//! non-orientable (a Möbius band); it is left as the walk made it and
+//! reported. Closed, orientable components with negative enclosed volume are
+//! then reversed as a whole so normals point outward.
+
+use super::components::connected_components;
+use super::{FaceId, Topology, TriMesh};
+use serde::Serialize;
+use std::collections::VecDeque;
+
+/// What [`orient_consistently`] changed.
+#[derive(Debug, Clone, Default, PartialEq, Eq, Serialize)]
+pub struct OrientationReport {
+    /// Triangles flipped to agree with their neighbours.
+    pub n_triangles_flipped: usize,
+    /// Components that cannot be oriented (contain a Möbius-like strip).
+    pub n_nonorientable_components: usize,
+    /// Closed components reversed as a whole so their normals point outward.
+    pub n_components_reversed_outward: usize,
+}
+
+/// Orient every component consistently and closed ones outward; keeps
+/// `topo` in step with `mesh`.
+pub fn orient_consistently(mesh: &mut TriMesh, topo: &mut Topology) -> OrientationReport {
+    let comps = connected_components(topo);
+    let mut report = OrientationReport::default();
+    let mut flip = vec![false; mesh.n_faces()];
+    let mut seen = vec![false; mesh.n_faces()];
+    let mut queue = VecDeque::new();
+    for faces in comps.faces_per_component() {
+        let mut consistent = true;
+        seen[faces[0].idx()] = true;
+        queue.push_back(faces[0]);
+        while let Some(f) = queue.pop_front() {
+            for i in 0..3 {
+                let Some(g) = topo.face_across(f, i) else { continue };
+                let same_dir = traverses_same_direction(mesh, topo, f, i, g);
+                let want = flip[f.idx()] ^ same_dir;
+                if seen[g.idx()] {
+                    consistent &= flip[g.idx()] == want;
+                } else {
+                    seen[g.idx()] = true;
+                    flip[g.idx()] = want;
+                    queue.push_back(g);
+                }
+            }
+        }
+        let n_flip = faces.iter().filter(|f| flip[f.idx()]).count();
+        let invert = 2 * n_flip > faces.len();
+        for f in &faces {
+            if flip[f.idx()] != invert {
+                mesh.flip_face(*f);
+                topo.flip_face(*f);
+                report.n_triangles_flipped += 1;
+            }
+        }
+        if !consistent {
+            report.n_nonorientable_components += 1;
+            continue;
+        }
+        if is_closed(topo, &faces) && component_volume(mesh, &faces) < 0.0 {
+            for f in &faces {
+                mesh.flip_face(*f);
+                topo.flip_face(*f);
+            }
+            report.n_components_reversed_outward += 1;
+        }
+    }
+    debug_assert!(mesh.validate().is_ok());
+    debug_assert!(topo.validate(mesh).is_ok());
+    report
+}
+
+/// True when triangle `g` traverses local edge `i` of `f` in the same direction as `f`.
+fn traverses_same_direction(mesh: &TriMesh, topo: &Topology, f: FaceId, i: usize, g: FaceId) -> bool {
+    let e = topo.face_edges[f.idx()][i];
+    let j = topo.local_edge(g, e).expect("neighbour shares the edge");
+    mesh.triangles[f.idx()][i] == mesh.triangles[g.idx()][j]
+}
+
+/// True when every edge of these triangles has exactly two triangles.
+fn is_closed(topo: &Topology, faces: &[FaceId]) -> bool {
+    faces.iter().all(|f| topo.face_edges[f.idx()].iter().all(|&e| topo.edge_valence(e) == 2))
+}
+
+/// Signed volume enclosed by the given triangles.
+fn component_volume(mesh: &TriMesh, faces: &[FaceId]) -> f64 {
+    faces
+        .iter()
+        .map(|f| {
+            let [a, b, c] = mesh.corners(*f);
+            a.dot(&b.cross(&c)) / 6.0
+        })
+        .sum()
+}
+
+/// Number of interior edges whose two triangles traverse them in the same direction.
+pub fn n_inconsistent_edges(mesh: &TriMesh, topo: &Topology) -> usize {
+    (0..topo.n_edges())
+        .filter(|&e| match topo.edge_faces(super::EdgeId::new(e)) {
+            [f, g] => {
+                let i = topo.local_edge(*f, super::EdgeId::new(e)).expect("own edge");
+                traverses_same_direction(mesh, topo, *f, i, *g)
+            }
+            _ => false,
+        })
+        .count()
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::mesh::fixtures;
+
+    #[test]
+    fn flips_the_minority_and_orients_outward() {
+        let mut m = fixtures::icosphere(2);
+        let n = m.n_faces();
+        for f in [3usize, 7, 11] {
+            m.flip_face(FaceId::new(f));
+        }
+        let mut t = Topology::new(&m);
+        assert!(n_inconsistent_edges(&m, &t) > 0);
+        let r = orient_consistently(&mut m, &mut t);
+        assert_eq!(r.n_triangles_flipped, 3);
+        assert_eq!(r.n_components_reversed_outward, 0);
+        assert_eq!(n_inconsistent_edges(&m, &t), 0);
+        assert!(m.signed_volume() > 0.0);
+
+        // Reverse everything: consistent but inward, reversed as a whole.
+        for f in 0..n {
+            m.flip_face(FaceId::new(f));
+        }
+        let mut t = Topology::new(&m);
+        let r = orient_consistently(&mut m, &mut t);
+        assert_eq!(r.n_triangles_flipped, 0);
+        assert_eq!(r.n_components_reversed_outward, 1);
+        assert!(m.signed_volume() > 0.0);
+    }
+
+    #[test]
+    fn mobius_band_is_nonorientable() {
+        let mut m = fixtures::mobius_band(24);
+        let mut t = Topology::new(&m);
+        let r = orient_consistently(&mut m, &mut t);
+        assert_eq!(r.n_nonorientable_components, 1);
+    }
+}
