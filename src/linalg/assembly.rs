@@ -16,7 +16,11 @@ pub struct Triplets {
 impl Triplets {
     /// Empty `n_rows × n_cols` assembly.
     pub fn new(n_rows: usize, n_cols: usize) -> Self {
-        Self { n_rows, n_cols, ..Default::default() }
+        Self {
+            n_rows,
+            n_cols,
+            ..Default::default()
+        }
     }
 
     /// Empty assembly with room for `capacity` entries.
@@ -66,14 +70,28 @@ impl Triplets {
         for k in 0..self.len() {
             let (r, c) = (self.rows[k] as usize, self.cols[k] as usize);
             if r >= self.n_rows || c >= self.n_cols {
-                return Err(LinalgError::IndexOutOfRange { row: r, col: c, n_rows: self.n_rows, n_cols: self.n_cols });
+                return Err(LinalgError::IndexOutOfRange {
+                    row: r,
+                    col: c,
+                    n_rows: self.n_rows,
+                    n_cols: self.n_cols,
+                });
             }
         }
-        let idx: Vec<Pair<usize, usize>> =
-            self.rows.iter().zip(&self.cols).map(|(&r, &c)| Pair::new(r as usize, c as usize)).collect();
-        let (symbolic, argsort) = SymbolicSparseColMat::try_new_from_indices(self.n_rows, self.n_cols, &idx)
-            .map_err(|e| LinalgError::Internal(format!("{e:?}")))?;
-        Ok(Pattern { symbolic, argsort, n_triplets: self.len() })
+        let idx: Vec<Pair<usize, usize>> = self
+            .rows
+            .iter()
+            .zip(&self.cols)
+            .map(|(&r, &c)| Pair::new(r as usize, c as usize))
+            .collect();
+        let (symbolic, argsort) =
+            SymbolicSparseColMat::try_new_from_indices(self.n_rows, self.n_cols, &idx)
+                .map_err(|e| LinalgError::Internal(format!("{e:?}")))?;
+        Ok(Pattern {
+            symbolic,
+            argsort,
+            n_triplets: self.len(),
+        })
     }
 
     /// Build the compressed matrix (duplicates summed).
@@ -102,7 +120,10 @@ impl Pattern {
     /// [`LinalgError::PatternMismatch`] when `values` has the wrong length.
     pub fn matrix(&self, values: &[f64]) -> Result<SparseMatrix, LinalgError> {
         if values.len() != self.n_triplets {
-            return Err(LinalgError::PatternMismatch { expected: self.n_triplets, got: values.len() });
+            return Err(LinalgError::PatternMismatch {
+                expected: self.n_triplets,
+                got: values.len(),
+            });
         }
         SparseMatrix::new_from_argsort(self.symbolic.clone(), &self.argsort, values)
             .map_err(|e| LinalgError::Internal(format!("{e:?}")))
@@ -122,13 +143,22 @@ mod tests {
         t.push(1, 0, -1.0);
         let m = t.to_matrix().unwrap();
         let d = m.to_dense();
-        assert_eq!((d[(0, 0)], d[(1, 1)], d[(1, 0)], d[(0, 1)]), (4.0, 2.0, -1.0, 0.0));
+        assert_eq!(
+            (d[(0, 0)], d[(1, 1)], d[(1, 0)], d[(0, 1)]),
+            (4.0, 2.0, -1.0, 0.0)
+        );
         let p = t.pattern().unwrap();
         let m2 = p.matrix(&[1.0, 1.0, 1.0, 1.0]).unwrap().to_dense();
         assert_eq!(m2[(0, 0)], 2.0);
-        assert!(matches!(p.matrix(&[1.0]), Err(LinalgError::PatternMismatch { .. })));
+        assert!(matches!(
+            p.matrix(&[1.0]),
+            Err(LinalgError::PatternMismatch { .. })
+        ));
         let mut bad = Triplets::new(2, 2);
         bad.push(2, 0, 1.0);
-        assert!(matches!(bad.to_matrix(), Err(LinalgError::IndexOutOfRange { row: 2, .. })));
+        assert!(matches!(
+            bad.to_matrix(),
+            Err(LinalgError::IndexOutOfRange { row: 2, .. })
+        ));
     }
 }
