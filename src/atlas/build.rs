@@ -13,7 +13,7 @@
 use super::curvature::{Curvature, principal_curvatures};
 use super::error::AtlasError;
 use super::features::{FeatureCurve, Features, detect_features, edge_chains, model_faces};
-use super::mvc::mean_value_parameterization;
+use super::mvc::{MvcSolver, mean_value_parameterization};
 use super::options::AtlasOptions;
 use super::partition::split_patch;
 use super::patch::{PatchDefect, PatchMesh};
@@ -224,8 +224,15 @@ fn process_patch(
             (patch.clone(), (0..n).collect(), 0)
         };
     let loops = work.loops_longest_first();
-    let param = mean_value_parameterization(&work, &loops, opts.max_hole_fill_vertices)?;
-    let check = check_map(&work, &param.uv, opts.min_relative_uv_area);
+    let mut param =
+        mean_value_parameterization(&work, &loops, opts.max_hole_fill_vertices, opts.solver)?;
+    let mut check = check_map(&work, &param.uv, opts.min_relative_uv_area);
+    if !check.is_valid() && param.solver != MvcSolver::Lu {
+        // An iterative solution may miss a tiny triangle that the exact solution gets right.
+        param =
+            mean_value_parameterization(&work, &loops, opts.max_hole_fill_vertices, MvcSolver::Lu)?;
+        check = check_map(&work, &param.uv, opts.min_relative_uv_area);
+    }
     if !check.is_valid() {
         if depth >= opts.max_split_depth || patch.n_faces() < 2 {
             let c = patch.mesh.positions.iter().sum::<crate::geom::Vec3>() / n_original as f64;
@@ -268,6 +275,8 @@ fn process_patch(
         sigma_ratio_jump_median: sigma_jump_median(&work, &sigma),
         min_relative_uv_area: check.min_relative_area,
         n_map_splits: depth,
+        solver: param.solver,
+        krylov_iterations: param.iterations,
         solve_seconds: start.elapsed().as_secs_f64(),
     };
     Ok(Outcome::Done(Box::new(DonePatch {
@@ -483,7 +492,10 @@ mod tests {
             .iter()
             .zip(&p.sigma_ratio)
             .filter(|(t, _)| {
-                let c: crate::geom::Vec3 = t.iter().map(|&v| a.mesh.positions[p.vertices[v as usize].idx()]).sum();
+                let c: crate::geom::Vec3 = t
+                    .iter()
+                    .map(|&v| a.mesh.positions[p.vertices[v as usize].idx()])
+                    .sum();
                 (c / 3.0 - crate::geom::Vec3::new(0.5, 0.5, 0.0)).norm() < 0.1
             })
             .map(|(_, s)| *s)

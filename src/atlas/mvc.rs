@@ -14,15 +14,40 @@
 //! and base angles `(π − α_j) / 2`; these triangles add mean value weights
 //! like real ones but are never built. Larger holes get homogeneous Neumann
 //! conditions: their vertices keep only their real neighbours. One sparse
-//! non-symmetric matrix, two right-hand sides (u and v): factored once.
+//! non-symmetric matrix `A`, two right-hand sides (u and v).
+//!
+//! Solvers ([`MvcSolver`]): a sparse LU of `A`, factored once for both
+//! right-hand sides; or BiCGSTAB preconditioned by the sparse Cholesky
+//! factor of the symmetric M-matrix `S` with weights `(λ_ij + λ_ji) / 2`
+//! (SPD: weakly diagonally dominant with Dirichlet rows). MVC weights are
+//! nearly symmetric on reasonable meshes, so `A S⁻¹` is close to the
+//! identity and a few iterations suffice; the Cholesky factor has far less
+//! fill than the LU (measurements in the atlas report and the benchmarks).
 
 use super::error::AtlasError;
 use super::patch::PatchMesh;
 use crate::geom::{Vec2, Vec3};
-use crate::linalg::{LuSolver, Triplets};
+use crate::linalg::{CholeskySolver, LuSolver, Triplets, bicgstab_block};
 use crate::mesh::VertexId;
 use crate::mesh::boundary::BoundaryLoop;
+use serde::{Deserialize, Serialize};
 use std::f64::consts::{PI, TAU};
+
+/// Which sparse solver computes the map.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "kebab-case")]
+pub enum MvcSolver {
+    /// Sparse LU of the MVC matrix, one factorization for both right-hand sides.
+    Lu,
+    /// BiCGSTAB preconditioned by a Cholesky factor of the symmetrized matrix;
+    /// falls back to LU if it does not converge.
+    Bicgstab,
+}
+
+/// Relative residual the iterative solver must reach.
+const KRYLOV_TOLERANCE: f64 = 1e-13;
+/// Iteration cap of the iterative solver before falling back to LU.
+const KRYLOV_MAX_ITERATIONS: usize = 200;
 
 /// The parametric coordinates of a patch and how its holes were treated.
 #[derive(Debug, Clone)]
@@ -35,6 +60,10 @@ pub struct PatchParameterization {
     pub n_holes_neumann: usize,
     /// Size of the solved system.
     pub n_unknowns: usize,
+    /// Solver actually used (an iterative solve that fails falls back to LU).
+    pub solver: MvcSolver,
+    /// BiCGSTAB iterations for u and v (0 with LU).
+    pub iterations: [usize; 2],
 }
 
 /// Mean value parameterization of `patch` with `loops[0]` as the outer loop.
@@ -45,6 +74,7 @@ pub fn mean_value_parameterization(
     patch: &PatchMesh,
     loops: &[BoundaryLoop],
     max_fill_vertices: usize,
+    solver: MvcSolver,
 ) -> Result<PatchParameterization, AtlasError> {
     let n_v = patch.mesh.n_vertices();
     let outer = &loops[0];
@@ -102,9 +132,8 @@ pub fn mean_value_parameterization(
             n_unknowns + h,
         );
     }
-    let (a, mut rhs) = system.finish()?;
-    let solver = LuSolver::new(&a)?;
-    solver.solve_columns(&mut rhs)?;
+    let (a, s, mut rhs) = system.finish()?;
+    let (used, iterations) = solve(&a, &s, &mut rhs, solver)?;
     for v in 0..n_v {
         let r = unknown_of[v];
         if r != usize::MAX {
@@ -116,7 +145,46 @@ pub fn mean_value_parameterization(
         n_holes_filled: n_centres,
         n_holes_neumann: loops.len() - 1 - n_centres,
         n_unknowns: n,
+        solver: used,
+        iterations,
     })
+}
+
+/// Solve `A x = b` for both columns of `rhs` in place with the chosen solver;
+/// returns the solver used and the iteration counts.
+fn solve(
+    a: &crate::linalg::SparseMatrix,
+    s: &crate::linalg::SparseMatrix,
+    rhs: &mut [Vec<f64>],
+    solver: MvcSolver,
+) -> Result<(MvcSolver, [usize; 2]), AtlasError> {
+    if solver == MvcSolver::Bicgstab
+        && let Ok(chol) = CholeskySolver::new(s)
+    {
+        let precond = |cols: &mut [Vec<f64>]| {
+            // Lengths always match the factored matrix here.
+            let _ = chol.solve_columns(cols);
+        };
+        let mut x = rhs.to_vec();
+        precond(&mut x);
+        let reps = bicgstab_block(
+            a,
+            &precond,
+            rhs,
+            &mut x,
+            KRYLOV_TOLERANCE,
+            KRYLOV_MAX_ITERATIONS,
+        );
+        if reps.iter().all(|r| r.converged) {
+            rhs.clone_from_slice(&x);
+            return Ok((
+                MvcSolver::Bicgstab,
+                [reps[0].iterations, reps[1].iterations],
+            ));
+        }
+    }
+    LuSolver::new(a)?.solve_columns(rhs)?;
+    Ok((MvcSolver::Lu, [0, 0]))
 }
 
 /// Points on the unit circle at angles proportional to arc length along the loop.
@@ -183,9 +251,11 @@ fn add_virtual_fill(
     }
 }
 
-/// Triplets of the difference scheme and its two right-hand sides.
+/// Triplets of the difference scheme `A`, of its symmetrization `S` (lower
+/// triangle), and the two right-hand sides.
 struct MvcSystem {
     triplets: Triplets,
+    symmetric: Triplets,
     rhs: [Vec<f64>; 2],
 }
 
@@ -193,6 +263,7 @@ impl MvcSystem {
     fn new(n: usize, capacity: usize) -> Self {
         Self {
             triplets: Triplets::with_capacity(n, n, capacity),
+            symmetric: Triplets::with_capacity(n, n, capacity),
             rhs: [vec![0.0; n], vec![0.0; n]],
         }
     }
@@ -205,14 +276,33 @@ impl MvcSystem {
         if col == usize::MAX {
             self.rhs[0][row] += w * fixed.x;
             self.rhs[1][row] += w * fixed.y;
+            self.symmetric.push(row, row, w);
         } else {
             self.triplets.push(row, col, -w);
+            let h = 0.5 * w;
+            self.symmetric.push(row, row, h);
+            self.symmetric.push(col, col, h);
+            self.symmetric.push(row.max(col), row.min(col), -h);
         }
     }
 
-    fn finish(self) -> Result<(crate::linalg::SparseMatrix, Vec<Vec<f64>>), AtlasError> {
+    /// `A`, `S` and the right-hand sides `[u, v]`.
+    fn finish(
+        self,
+    ) -> Result<
+        (
+            crate::linalg::SparseMatrix,
+            crate::linalg::SparseMatrix,
+            Vec<Vec<f64>>,
+        ),
+        AtlasError,
+    > {
         let [u, v] = self.rhs;
-        Ok((self.triplets.to_matrix()?, vec![u, v]))
+        Ok((
+            self.triplets.to_matrix()?,
+            self.symmetric.to_matrix()?,
+            vec![u, v],
+        ))
     }
 }
 
@@ -232,7 +322,7 @@ mod tests {
         let m = fixtures::disk(8);
         let p = whole(&m);
         let loops = p.loops_longest_first();
-        let par = mean_value_parameterization(&p, &loops, 100).unwrap();
+        let par = mean_value_parameterization(&p, &loops, 100, MvcSolver::Lu).unwrap();
         let err = p
             .mesh
             .positions
@@ -248,6 +338,32 @@ mod tests {
     }
 
     #[test]
+    fn iterative_and_direct_solvers_agree_on_a_curved_patch() {
+        // A bumpy, irregular patch: a sphere cap with jittered vertices.
+        let mut m = fixtures::icosphere(4);
+        for (i, p) in m.positions.iter_mut().enumerate() {
+            *p *= 1.0 + 0.05 * ((i * 7919) % 17) as f64 / 17.0;
+        }
+        let faces: Vec<FaceId> = (0..m.n_faces())
+            .filter(|&f| m.corners(FaceId::new(f)).iter().all(|c| c.z > -0.3))
+            .map(FaceId::new)
+            .collect();
+        let p = PatchMesh::extract(&m, &faces);
+        let loops = p.loops_longest_first();
+        let lu = mean_value_parameterization(&p, &loops, 100, MvcSolver::Lu).unwrap();
+        let it = mean_value_parameterization(&p, &loops, 100, MvcSolver::Bicgstab).unwrap();
+        assert_eq!(it.solver, MvcSolver::Bicgstab);
+        assert!(it.iterations[0] < 50, "{:?}", it.iterations);
+        let err = lu
+            .uv
+            .iter()
+            .zip(&it.uv)
+            .map(|(a, b)| (a - b).norm())
+            .fold(0.0, f64::max);
+        assert!(err < 1e-10, "max difference {err}");
+    }
+
+    #[test]
     fn weights_are_positive_even_for_slivers() {
         let a = Vec3::new(1.0, 0.0, 0.0);
         assert!(tan_half_angle(&a, &Vec3::new(1.0, 1e-9, 0.0)) > 0.0);
@@ -260,8 +376,14 @@ mod tests {
         let m = fixtures::annulus(0.3, 1.0, 32, 6);
         let p = whole(&m);
         let loops = p.loops_longest_first();
-        for max_fill in [1000, 0] {
-            let par = mean_value_parameterization(&p, &loops, max_fill).unwrap();
+        for (max_fill, solver) in [
+            (1000, MvcSolver::Lu),
+            (0, MvcSolver::Lu),
+            (1000, MvcSolver::Bicgstab),
+            (0, MvcSolver::Bicgstab),
+        ] {
+            let par = mean_value_parameterization(&p, &loops, max_fill, solver).unwrap();
+            assert_eq!(par.solver, solver);
             assert_eq!(par.n_holes_filled + par.n_holes_neumann, 1);
             for t in &p.mesh.triangles {
                 let [a, b, c] = t.map(|v| par.uv[v.idx()]);

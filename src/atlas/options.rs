@@ -1,6 +1,7 @@
 //! Options of the atlas stage.
 
 use super::error::AtlasError;
+use super::mvc::MvcSolver;
 use serde::{Deserialize, Serialize};
 
 /// Parameters of [`super::build_atlas`]; every field has a default.
@@ -32,6 +33,9 @@ pub struct AtlasOptions {
     /// How many times a patch may be split because its map failed before
     /// the stage gives up with an error naming it. Default 16.
     pub max_split_depth: usize,
+    /// Sparse solver of the mean value systems: `"bicgstab"` (default;
+    /// Cholesky-preconditioned, falls back to LU) or `"lu"`.
+    pub solver: MvcSolver,
 }
 
 impl Default for AtlasOptions {
@@ -44,6 +48,7 @@ impl Default for AtlasOptions {
             refine_max_passes: 5,
             min_relative_uv_area: 1e-12,
             max_split_depth: 16,
+            solver: MvcSolver::Bicgstab,
         }
     }
 }

@@ -1,13 +1,14 @@
 //! The atlas section of `report.json`.
 
 use super::build::Atlas;
+use super::mvc::MvcSolver;
 use super::patch::PatchDefect;
 use crate::mesh::summary::topology_summary;
 use crate::mesh::{Topology, TriMesh};
 use serde::Serialize;
 
 /// Summary numbers of one patch.
-#[derive(Debug, Clone, Default, PartialEq, Serialize)]
+#[derive(Debug, Clone, PartialEq, Serialize)]
 pub struct PatchReport {
     /// Patch index (the surface entity is `id + 1` in `atlas.msh`).
     pub id: usize,
@@ -35,6 +36,10 @@ pub struct PatchReport {
     pub min_relative_uv_area: f64,
     /// Times this patch's ancestors were split because a map failed.
     pub n_map_splits: usize,
+    /// Sparse solver used for the map.
+    pub solver: MvcSolver,
+    /// BiCGSTAB iterations for u and v (0 with LU).
+    pub krylov_iterations: [usize; 2],
     /// Wall seconds spent refining, solving and verifying this patch.
     pub solve_seconds: f64,
 }
