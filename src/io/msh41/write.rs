@@ -409,7 +409,7 @@ fn push_f64_string(s: &mut String, x: f64) {
 mod tests {
     use super::*;
     use crate::geom::{Vec2, Vec3};
-    use crate::io::msh41::model::{CurveEntity, CurveParametrization, PointEntity, SurfaceEntity, SurfaceParametrization};
+    use crate::io::msh41::model::{CurveEntity, CurveParametrization, PointEntity, SurfaceParametrization};
     use crate::mesh::fixtures;
 
     fn ascii(model: &MshModel) -> String {
