@@ -699,6 +699,52 @@ fn atlas_sphere_of_two_caps_sharing_a_curve_is_remeshed_watertight() {
     assert_eq!(r["edge_uses"], json!({"2": r["edge_uses"]["2"]}), "every edge must be shared by exactly two triangles");
 }
 
+#[test]
+fn atlas_patch_with_a_hole_is_remeshed_by_gmsh() {
+    // An open cylinder: one curved patch bounded by two closed curves, mapped
+    // to the annulus 0.5 <= |(u, v)| <= 1 (bottom ring outside, top ring inside).
+    let dir = scratch("atlas_cylinder");
+    let (radius, height, n_around, n_height) = (1.0, 1.5, 32, 8);
+    let mesh = fixtures::cylinder(radius, height, n_around, n_height);
+    let ring = |k: usize| -> Vec<VertexId> { (0..n_around).map(|j| VertexId::new(k * n_around + j)).collect() };
+    let mut b = DiscreteModelBuilder::new(&mesh);
+    let mut curves = Vec::new();
+    for k in [0, n_height] {
+        let r = ring(k);
+        b.add_corner(r[0]).unwrap();
+        let mut chain = r.clone();
+        chain.push(r[0]);
+        curves.push(b.add_curve(chain).unwrap());
+    }
+    let all: Vec<VertexId> = (0..mesh.n_vertices()).map(VertexId::new).collect();
+    let uv = all
+        .iter()
+        .map(|v| {
+            let p = mesh.positions[v.idx()];
+            let rho = 1.0 - 0.5 * p.z / height;
+            Vec2::new(p.x, p.y) * (rho / radius)
+        })
+        .collect();
+    let map = PatchUv { vertices: all, uv, curvature: vec![] };
+    b.add_patch((0..mesh.n_faces()).map(FaceId::new).collect(), curves, Some(map.clone())).unwrap();
+    let model = b.build().unwrap();
+
+    let h = 0.15;
+    let r = remesh(&dir, "cylinder", &model, h, &samples(1, &mesh, &map, 5), StoredMap::Kept);
+    assert_eq!(r["entities"], json!([[0, 1], [0, 2], [1, 1], [1, 2], [2, 1]]));
+    assert_eq!(r["boundaries"]["2,1"], json!([[1, 1], [1, 2]]));
+    let n = r["triangles"]["1"].as_f64().unwrap();
+    let expected = expected_triangles(std::f64::consts::TAU * radius * height, h);
+    assert!(n > 0.5 * expected && n < 2.0 * expected, "{n} triangles, expected about {expected}");
+    let inner = radius * (std::f64::consts::PI / n_around as f64).cos();
+    for p in coords(&r) {
+        let rho = p.xy().norm();
+        assert!(rho <= radius + 1e-9 && rho >= inner - 1e-9 && p.z > -1e-9 && p.z < height + 1e-9, "node {p:?} off the cylinder");
+    }
+    let uses = &r["edge_uses"];
+    assert!(uses["1"].as_u64().unwrap() > 0 && uses.as_object().unwrap().keys().all(|k| k == "1" || k == "2"), "{uses}");
+}
+
 /// `fixtures::cube(n)` as 6 planar patches, 12 edge curves and 8 corners.
 fn cube_atlas(n: usize) -> (TriMesh, MshModel, Vec<[f64; 6]>) {
     let mesh = fixtures::cube(n);

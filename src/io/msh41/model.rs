@@ -160,7 +160,9 @@ pub struct NodeBlock {
     /// Parametric coordinates on the entity, `entity_dim` values per node
     /// (`u` on a curve, `u v` on a surface); `None` writes a non-parametric
     /// block. Gmsh itself writes zeros here for discrete entities and keeps
-    /// the real maps in `$Parametrizations`.
+    /// the real maps in `$Parametrizations`; Gmsh accepts real values too,
+    /// but meshio 5.3 cannot read parametric blocks at all ("parametric
+    /// nodes not implemented"), so leave this `None` for discrete atlases.
     pub parametric: Option<Vec<f64>>,
 }
 
@@ -517,6 +519,16 @@ impl MshModel {
                     return Err(WriteError::NonFiniteCoordinate { what: label(&format!("(u, v) {i}")), x: uv.x, y: uv.y, z: 0.0 });
                 }
             }
+            // Without the polyline of each bounding curve Gmsh cannot mesh the
+            // boundary after `mesh.clear()`, and then silently skips the surface.
+            let boundary = self.surfaces.iter().find(|e| e.tag == p.surface).map_or(&[][..], |e| &e.bounding_curves[..]);
+            if let Some(c) = boundary.iter().find(|c| !self.curve_parametrizations.iter().any(|q| q.curve == c.abs())) {
+                return Err(WriteError::Invalid(format!(
+                    "surface {} has a parametrization but its boundary curve {} has none (Gmsh could not remesh it)",
+                    p.surface,
+                    c.abs()
+                )));
+            }
             for (t, tri) in p.triangles.iter().enumerate() {
                 for &i in tri {
                     if i as usize >= p.positions.len() {
@@ -765,6 +777,19 @@ mod tests {
             triangles: vec![[0, 1, 3]],
         });
         assert!(matches!(m.validate(), Err(WriteError::IndexOutOfRange { index: 3, n_points: 3, .. })));
+        let mut m = base.clone();
+        m.curves.push(CurveEntity { tag: 4, ..Default::default() });
+        m.surfaces[0].bounding_curves = vec![4];
+        m.surface_parametrizations.push(SurfaceParametrization {
+            surface: 1,
+            positions: vec![Vec3::zeros(), Vec3::x(), Vec3::y()],
+            uv: vec![Vec2::zeros(), Vec2::x(), Vec2::y()],
+            curvature: vec![],
+            triangles: vec![[0, 1, 2]],
+        });
+        assert!(matches!(m.validate(), Err(WriteError::Invalid(s)) if s.contains("boundary curve 4 has none")));
+        m.curve_parametrizations.push(CurveParametrization { curve: 4, points: vec![Vec3::zeros(), Vec3::x()] });
+        m.validate().unwrap();
         let mut m = base;
         m.element_blocks[0].tags[0] = 0;
         assert!(matches!(m.validate(), Err(WriteError::NonPositiveTag { what: "element", tag: 0 })));
