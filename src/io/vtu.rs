@@ -181,8 +181,16 @@ pub struct DataArray<'a> {
 
 impl<'a> DataArray<'a> {
     /// A `Float64` array.
-    pub fn f64(name: impl Into<String>, n_components: usize, values: impl Into<Cow<'a, [f64]>>) -> Self {
-        Self { name: name.into(), n_components, values: DataValues::Float64(values.into()) }
+    pub fn f64(
+        name: impl Into<String>,
+        n_components: usize,
+        values: impl Into<Cow<'a, [f64]>>,
+    ) -> Self {
+        Self {
+            name: name.into(),
+            n_components,
+            values: DataValues::Float64(values.into()),
+        }
     }
 
     /// A `Float64` array of 3-vectors (copied).
@@ -193,12 +201,20 @@ impl<'a> DataArray<'a> {
 
     /// An `Int32` scalar array.
     pub fn i32(name: impl Into<String>, values: impl Into<Cow<'a, [i32]>>) -> Self {
-        Self { name: name.into(), n_components: 1, values: DataValues::Int32(values.into()) }
+        Self {
+            name: name.into(),
+            n_components: 1,
+            values: DataValues::Int32(values.into()),
+        }
     }
 
     /// A `UInt8` scalar array (flags).
     pub fn u8(name: impl Into<String>, values: impl Into<Cow<'a, [u8]>>) -> Self {
-        Self { name: name.into(), n_components: 1, values: DataValues::UInt8(values.into()) }
+        Self {
+            name: name.into(),
+            n_components: 1,
+            values: DataValues::UInt8(values.into()),
+        }
     }
 }
 
@@ -219,12 +235,20 @@ pub struct VtuMesh<'a> {
 impl<'a> VtuMesh<'a> {
     /// The triangles of `mesh`, no data.
     pub fn from_surface(mesh: &'a TriMesh) -> Self {
-        Self { points: &mesh.positions, cells: vec![CellBlock::Triangles(&mesh.triangles)], ..Default::default() }
+        Self {
+            points: &mesh.positions,
+            cells: vec![CellBlock::Triangles(&mesh.triangles)],
+            ..Default::default()
+        }
     }
 
     /// The tetrahedra of `mesh`, no data.
     pub fn from_volume(mesh: &'a TetMesh) -> Self {
-        Self { points: &mesh.positions, cells: vec![CellBlock::Tetrahedra(&mesh.tets)], ..Default::default() }
+        Self {
+            points: &mesh.positions,
+            cells: vec![CellBlock::Tetrahedra(&mesh.tets)],
+            ..Default::default()
+        }
     }
 
     /// Total number of cells.
@@ -239,7 +263,12 @@ impl<'a> VtuMesh<'a> {
     pub fn validate(&self) -> Result<(), WriteError> {
         for (i, p) in self.points.iter().enumerate() {
             if !p.iter().all(|c| c.is_finite()) {
-                return Err(WriteError::NonFiniteCoordinate { what: format!("point {i}"), x: p.x, y: p.y, z: p.z });
+                return Err(WriteError::NonFiniteCoordinate {
+                    what: format!("point {i}"),
+                    x: p.x,
+                    y: p.y,
+                    z: p.z,
+                });
             }
         }
         let n = self.points.len();
@@ -255,7 +284,10 @@ impl<'a> VtuMesh<'a> {
             }
             first += block.len();
         }
-        for (arrays, count, what) in [(&self.point_data, n, "point"), (&self.cell_data, self.n_cells(), "cell")] {
+        for (arrays, count, what) in [
+            (&self.point_data, n, "point"),
+            (&self.cell_data, self.n_cells(), "cell"),
+        ] {
             for a in arrays {
                 if a.n_components == 0 {
                     return Err(WriteError::BadComponents {
@@ -297,10 +329,16 @@ pub fn write_vtu(w: impl Write, mesh: &VtuMesh<'_>, opts: &VtuOptions) -> Result
         mesh.points.len(),
         mesh.n_cells()
     ));
-    for (tag, data) in [("PointData", &mesh.point_data), ("CellData", &mesh.cell_data)] {
+    for (tag, data) in [
+        ("PointData", &mesh.point_data),
+        ("CellData", &mesh.cell_data),
+    ] {
         xml.text(&format!("<{tag}>\n"));
         for a in data {
-            arrays.push((Source::Values(&a.values), attrs(&a.name, a.values.vtk_name(), a.n_components)));
+            arrays.push((
+                Source::Values(&a.values),
+                attrs(&a.name, a.values.vtk_name(), a.n_components),
+            ));
         }
         xml.arrays(&mut arrays)?;
         xml.text(&format!("</{tag}>\n"));
@@ -310,7 +348,10 @@ pub fn write_vtu(w: impl Write, mesh: &VtuMesh<'_>, opts: &VtuOptions) -> Result
     xml.arrays(&mut arrays)?;
     xml.text("</Points>\n<Cells>\n");
     let int = if wide { "Int64" } else { "Int32" };
-    arrays.push((Source::Connectivity(&mesh.cells, wide), attrs("connectivity", int, 1)));
+    arrays.push((
+        Source::Connectivity(&mesh.cells, wide),
+        attrs("connectivity", int, 1),
+    ));
     arrays.push((Source::Offsets(&mesh.cells, wide), attrs("offsets", int, 1)));
     arrays.push((Source::Types(&mesh.cells), attrs("types", "UInt8", 1)));
     xml.arrays(&mut arrays)?;
@@ -362,8 +403,12 @@ impl Source<'_> {
     fn n_bytes(&self) -> usize {
         match self {
             Self::Points(p) => 24 * p.len(),
-            Self::Connectivity(c, wide) => c.iter().map(|b| b.indices().len()).sum::<usize>() * if *wide { 8 } else { 4 },
-            Self::Offsets(c, wide) => c.iter().map(CellBlock::len).sum::<usize>() * if *wide { 8 } else { 4 },
+            Self::Connectivity(c, wide) => {
+                c.iter().map(|b| b.indices().len()).sum::<usize>() * if *wide { 8 } else { 4 }
+            }
+            Self::Offsets(c, wide) => {
+                c.iter().map(CellBlock::len).sum::<usize>() * if *wide { 8 } else { 4 }
+            }
             Self::Types(c) => c.iter().map(CellBlock::len).sum(),
             Self::Values(v) => match v {
                 DataValues::Float64(x) => 8 * x.len(),
@@ -409,12 +454,24 @@ impl Source<'_> {
                 }
             }
             Self::Values(v) => match v {
-                DataValues::Float64(x) => x.iter().try_for_each(|&x| f(&x.to_le_bytes(), Scalar::F(x)))?,
-                DataValues::Float32(x) => x.iter().try_for_each(|&x| f(&x.to_le_bytes(), Scalar::F(f64::from(x))))?,
-                DataValues::Int32(x) => x.iter().try_for_each(|&x| f(&x.to_le_bytes(), Scalar::I(i64::from(x))))?,
-                DataValues::Int64(x) => x.iter().try_for_each(|&x| f(&x.to_le_bytes(), Scalar::I(x)))?,
-                DataValues::UInt8(x) => x.iter().try_for_each(|&x| f(&[x], Scalar::U(u64::from(x))))?,
-                DataValues::UInt32(x) => x.iter().try_for_each(|&x| f(&x.to_le_bytes(), Scalar::U(u64::from(x))))?,
+                DataValues::Float64(x) => x
+                    .iter()
+                    .try_for_each(|&x| f(&x.to_le_bytes(), Scalar::F(x)))?,
+                DataValues::Float32(x) => x
+                    .iter()
+                    .try_for_each(|&x| f(&x.to_le_bytes(), Scalar::F(f64::from(x))))?,
+                DataValues::Int32(x) => x
+                    .iter()
+                    .try_for_each(|&x| f(&x.to_le_bytes(), Scalar::I(i64::from(x))))?,
+                DataValues::Int64(x) => x
+                    .iter()
+                    .try_for_each(|&x| f(&x.to_le_bytes(), Scalar::I(x)))?,
+                DataValues::UInt8(x) => x
+                    .iter()
+                    .try_for_each(|&x| f(&[x], Scalar::U(u64::from(x))))?,
+                DataValues::UInt32(x) => x
+                    .iter()
+                    .try_for_each(|&x| f(&x.to_le_bytes(), Scalar::U(u64::from(x))))?,
             },
         }
         Ok(())
@@ -428,7 +485,11 @@ impl Source<'_> {
 
 /// An index as Int32 (validated to fit) or Int64.
 fn int<E>(f: &mut impl FnMut(&[u8], Scalar) -> Result<(), E>, x: i64, wide: bool) -> Result<(), E> {
-    if wide { f(&x.to_le_bytes(), Scalar::I(x)) } else { f(&(x as i32).to_le_bytes(), Scalar::I(x)) }
+    if wide {
+        f(&x.to_le_bytes(), Scalar::I(x))
+    } else {
+        f(&(x as i32).to_le_bytes(), Scalar::I(x))
+    }
 }
 
 /// The output with its encoding state.
@@ -460,7 +521,11 @@ impl<'s, W: Write> XmlOut<'s, W> {
     }
 
     fn header_bytes(&self, n: usize) -> Vec<u8> {
-        if self.header64 { (n as u64).to_le_bytes().to_vec() } else { (n as u32).to_le_bytes().to_vec() }
+        if self.header64 {
+            (n as u64).to_le_bytes().to_vec()
+        } else {
+            (n as u32).to_le_bytes().to_vec()
+        }
     }
 
     /// Write the `DataArray` elements of `arrays` (draining it).
@@ -468,7 +533,11 @@ impl<'s, W: Write> XmlOut<'s, W> {
         for (src, attrs) in arrays.drain(..) {
             let n = src.n_bytes();
             if !self.header64 && n > u32::MAX as usize {
-                return Err(WriteError::TooLarge { what: "VTU array bytes with a UInt32 header", count: n, max: u64::from(u32::MAX) });
+                return Err(WriteError::TooLarge {
+                    what: "VTU array bytes with a UInt32 header",
+                    count: n,
+                    max: u64::from(u32::MAX),
+                });
             }
             match self.encoding {
                 VtuEncoding::Ascii => {
@@ -484,7 +553,10 @@ impl<'s, W: Write> XmlOut<'s, W> {
                     self.text("\n</DataArray>\n");
                 }
                 VtuEncoding::Raw => {
-                    self.text(&format!("<DataArray {attrs} format=\"appended\" offset=\"{}\"/>\n", self.offset));
+                    self.text(&format!(
+                        "<DataArray {attrs} format=\"appended\" offset=\"{}\"/>\n",
+                        self.offset
+                    ));
                     self.offset += n + if self.header64 { 8 } else { 4 };
                     self.pending.push(src);
                 }
@@ -501,7 +573,9 @@ impl<'s, W: Write> XmlOut<'s, W> {
         let mut k = 0usize;
         src.for_each(|_, s| -> std::io::Result<()> {
             match s {
-                Scalar::F(x) if f32s => buf.extend_from_slice(zmij::Buffer::new().format(x as f32).as_bytes()),
+                Scalar::F(x) if f32s => {
+                    buf.extend_from_slice(zmij::Buffer::new().format(x as f32).as_bytes())
+                }
                 Scalar::F(x) => push_f64(buf, x),
                 Scalar::I(x) => push_i64(buf, x),
                 Scalar::U(x) => push_u64(buf, x),
@@ -568,7 +642,9 @@ fn push_base64(buf: &mut Vec<u8>, bytes: &[u8]) -> std::io::Result<()> {
     let n = base64::encoded_len(bytes.len(), true)
         .ok_or_else(|| std::io::Error::other("base64 length overflows usize"))?;
     buf.resize(start + n, 0);
-    let written = B64.encode_slice(bytes, &mut buf[start..]).map_err(std::io::Error::other)?;
+    let written = B64
+        .encode_slice(bytes, &mut buf[start..])
+        .map_err(std::io::Error::other)?;
     buf.truncate(start + written);
     Ok(())
 }
@@ -588,14 +664,26 @@ mod tests {
 
     fn write(mesh: &VtuMesh<'_>, encoding: VtuEncoding, header_type: VtuHeaderType) -> Vec<u8> {
         let mut v = Vec::new();
-        write_vtu(&mut v, mesh, &VtuOptions { encoding, header_type }).unwrap();
+        write_vtu(
+            &mut v,
+            mesh,
+            &VtuOptions {
+                encoding,
+                header_type,
+            },
+        )
+        .unwrap();
         v
     }
 
     fn sample(m: &TriMesh) -> VtuMesh<'_> {
         let mut mesh = VtuMesh::from_surface(m);
-        mesh.point_data.push(DataArray::vectors("normal", &m.positions));
-        mesh.cell_data.push(DataArray::i32("patch", (0..m.n_faces() as i32).collect::<Vec<_>>()));
+        mesh.point_data
+            .push(DataArray::vectors("normal", &m.positions));
+        mesh.cell_data.push(DataArray::i32(
+            "patch",
+            (0..m.n_faces() as i32).collect::<Vec<_>>(),
+        ));
         mesh
     }
 
@@ -610,21 +698,45 @@ mod tests {
     #[test]
     fn ascii_has_counts_offsets_types_and_values() {
         let m = fixtures::square(1);
-        let text = String::from_utf8(write(&sample(&m), VtuEncoding::Ascii, VtuHeaderType::UInt64)).unwrap();
+        let text = String::from_utf8(write(
+            &sample(&m),
+            VtuEncoding::Ascii,
+            VtuHeaderType::UInt64,
+        ))
+        .unwrap();
         assert!(text.contains("NumberOfPoints=\"4\" NumberOfCells=\"2\""));
-        assert_eq!(array_text(&text, "connectivity").split_whitespace().collect::<Vec<_>>(), ["0", "1", "3", "0", "3", "2"]);
+        assert_eq!(
+            array_text(&text, "connectivity")
+                .split_whitespace()
+                .collect::<Vec<_>>(),
+            ["0", "1", "3", "0", "3", "2"]
+        );
         assert_eq!(array_text(&text, "offsets"), "3 6");
         assert_eq!(array_text(&text, "types"), "5 5");
         assert_eq!(array_text(&text, "patch"), "0 1");
-        let pts: Vec<f64> = array_text(&text, "Points").split_whitespace().map(|s| s.parse().unwrap()).collect();
-        assert_eq!(pts, m.positions.iter().flat_map(|p| [p.x, p.y, p.z]).collect::<Vec<_>>());
+        let pts: Vec<f64> = array_text(&text, "Points")
+            .split_whitespace()
+            .map(|s| s.parse().unwrap())
+            .collect();
+        assert_eq!(
+            pts,
+            m.positions
+                .iter()
+                .flat_map(|p| [p.x, p.y, p.z])
+                .collect::<Vec<_>>()
+        );
         assert!(text.contains("type=\"Int32\" Name=\"connectivity\""));
     }
 
     #[test]
     fn base64_decodes_to_header_and_bytes() {
         let m = fixtures::square(1);
-        let text = String::from_utf8(write(&sample(&m), VtuEncoding::Base64, VtuHeaderType::UInt32)).unwrap();
+        let text = String::from_utf8(write(
+            &sample(&m),
+            VtuEncoding::Base64,
+            VtuHeaderType::UInt32,
+        ))
+        .unwrap();
         let s = array_text(&text, "types");
         // Header (4 bytes → 8 chars with padding) encoded apart from the data.
         let header = B64.decode(&s[..8]).unwrap();
@@ -632,8 +744,19 @@ mod tests {
         assert_eq!(B64.decode(&s[8..]).unwrap(), [5, 5]);
         let p = array_text(&text, "Points");
         assert_eq!(B64.decode(&p[..8]).unwrap(), 96u32.to_le_bytes());
-        let xyz: Vec<f64> = B64.decode(&p[8..]).unwrap().chunks_exact(8).map(|c| f64::from_le_bytes(c.try_into().unwrap())).collect();
-        assert_eq!(xyz, m.positions.iter().flat_map(|p| [p.x, p.y, p.z]).collect::<Vec<_>>());
+        let xyz: Vec<f64> = B64
+            .decode(&p[8..])
+            .unwrap()
+            .chunks_exact(8)
+            .map(|c| f64::from_le_bytes(c.try_into().unwrap()))
+            .collect();
+        assert_eq!(
+            xyz,
+            m.positions
+                .iter()
+                .flat_map(|p| [p.x, p.y, p.z])
+                .collect::<Vec<_>>()
+        );
     }
 
     #[test]
@@ -641,7 +764,11 @@ mod tests {
         let m = fixtures::square(2);
         let bytes = write(&sample(&m), VtuEncoding::Raw, VtuHeaderType::UInt64);
         let marker = b"<AppendedData encoding=\"raw\">\n_";
-        let start = bytes.windows(marker.len()).position(|w| w == marker).unwrap() + marker.len();
+        let start = bytes
+            .windows(marker.len())
+            .position(|w| w == marker)
+            .unwrap()
+            + marker.len();
         let head = String::from_utf8_lossy(&bytes[..start]).into_owned();
         let offsets: Vec<usize> = head
             .match_indices("offset=\"")
@@ -664,11 +791,22 @@ mod tests {
         let mut v = Vec::new();
         assert!(matches!(
             write_vtu(&mut v, &mesh, &VtuOptions::default()),
-            Err(WriteError::LengthMismatch { expected: 2, got: 1, .. })
+            Err(WriteError::LengthMismatch {
+                expected: 2,
+                got: 1,
+                ..
+            })
         ));
         let bad = [[VertexId(0), VertexId(7)]];
-        let mesh = VtuMesh { points: &m.positions, cells: vec![CellBlock::Lines(&bad)], ..Default::default() };
-        assert!(matches!(write_vtu(&mut v, &mesh, &VtuOptions::default()), Err(WriteError::IndexOutOfRange { index: 7, .. })));
+        let mesh = VtuMesh {
+            points: &m.positions,
+            cells: vec![CellBlock::Lines(&bad)],
+            ..Default::default()
+        };
+        assert!(matches!(
+            write_vtu(&mut v, &mesh, &VtuOptions::default()),
+            Err(WriteError::IndexOutOfRange { index: 7, .. })
+        ));
         assert!(v.is_empty());
     }
 }

@@ -21,10 +21,16 @@ pub fn python(script: &str, args: &[&str]) -> Value {
         .arg(format!("{prelude}{script}"))
         .args(args)
         .output()
-        .unwrap_or_else(|e| panic!("cannot run python3 ({e}); run .ci/run to install python3 with gmsh and meshio"));
+        .unwrap_or_else(|e| {
+            panic!("cannot run python3 ({e}); run .ci/run to install python3 with gmsh and meshio")
+        });
     let stdout = String::from_utf8_lossy(&out.stdout);
     let stderr = String::from_utf8_lossy(&out.stderr);
-    assert!(out.status.success(), "python3 failed ({}):\n{stderr}\n{stdout}", out.status);
+    assert!(
+        out.status.success(),
+        "python3 failed ({}):\n{stderr}\n{stdout}",
+        out.status
+    );
     let last = stdout
         .lines()
         .rev()
@@ -35,7 +41,9 @@ pub fn python(script: &str, args: &[&str]) -> Value {
 
 /// A fresh directory `<target tmp>/<suite>/<name>` for one test's files.
 pub fn scratch(suite: &str, name: &str) -> PathBuf {
-    let dir = Path::new(env!("CARGO_TARGET_TMPDIR")).join(suite).join(name);
+    let dir = Path::new(env!("CARGO_TARGET_TMPDIR"))
+        .join(suite)
+        .join(name);
     let _ = std::fs::remove_dir_all(&dir);
     std::fs::create_dir_all(&dir).expect("create scratch dir");
     dir
@@ -49,6 +57,10 @@ pub fn path_str(p: &Path) -> &str {
 /// The shared test data directory (`../shared/data` next to the repository).
 pub fn shared_data() -> PathBuf {
     let p = Path::new(env!("CARGO_MANIFEST_DIR")).join("../shared/data");
-    assert!(p.is_dir(), "test data not found at {}: CI clones the repository next to ../shared", p.display());
+    assert!(
+        p.is_dir(),
+        "test data not found at {}: CI clones the repository next to ../shared",
+        p.display()
+    );
     p
 }

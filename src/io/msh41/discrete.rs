@@ -22,8 +22,8 @@
 //! most one curve.
 
 use super::model::{
-    CurveEntity, CurveParametrization, ElementBlock, ElementType, EntityTag, MshModel, NodeBlock, PointEntity,
-    SurfaceEntity, SurfaceParametrization,
+    CurveEntity, CurveParametrization, ElementBlock, ElementType, EntityTag, MshModel, NodeBlock,
+    PointEntity, SurfaceEntity, SurfaceParametrization,
 };
 use crate::geom::{Vec2, Vec3};
 use crate::io::write_error::WriteError;
@@ -54,7 +54,12 @@ pub struct DiscreteModelBuilder<'m> {
 impl<'m> DiscreteModelBuilder<'m> {
     /// An empty model over `mesh`.
     pub fn new(mesh: &'m TriMesh) -> Self {
-        Self { mesh, corners: Vec::new(), curves: Vec::new(), patches: Vec::new() }
+        Self {
+            mesh,
+            corners: Vec::new(),
+            curves: Vec::new(),
+            patches: Vec::new(),
+        }
     }
 
     /// Add a corner at vertex `v`; returns its point entity tag.
@@ -65,7 +70,9 @@ impl<'m> DiscreteModelBuilder<'m> {
     pub fn add_corner(&mut self, v: VertexId) -> Result<EntityTag, WriteError> {
         self.check_vertex(v, "corner")?;
         if self.corners.contains(&v) {
-            return Err(WriteError::Invalid(format!("vertex {v} is already a corner")));
+            return Err(WriteError::Invalid(format!(
+                "vertex {v} is already a corner"
+            )));
         }
         self.corners.push(v);
         Ok(self.corners.len() as EntityTag)
@@ -82,17 +89,25 @@ impl<'m> DiscreteModelBuilder<'m> {
     pub fn add_curve(&mut self, chain: Vec<VertexId>) -> Result<EntityTag, WriteError> {
         let tag = self.curves.len() as EntityTag + 1;
         if chain.len() < 2 {
-            return Err(WriteError::Invalid(format!("curve {tag} has {} vertex(es), needs 2", chain.len())));
+            return Err(WriteError::Invalid(format!(
+                "curve {tag} has {} vertex(es), needs 2",
+                chain.len()
+            )));
         }
         for &v in &chain {
             self.check_vertex(v, &format!("curve {tag}"))?;
         }
         if let Some(w) = chain.windows(2).find(|w| w[0] == w[1]) {
-            return Err(WriteError::Invalid(format!("curve {tag} repeats vertex {} consecutively", w[0])));
+            return Err(WriteError::Invalid(format!(
+                "curve {tag} repeats vertex {} consecutively",
+                w[0]
+            )));
         }
         for end in [chain[0], chain[chain.len() - 1]] {
             if !self.corners.contains(&end) {
-                return Err(WriteError::Invalid(format!("curve {tag} ends at vertex {end}, which is not a corner")));
+                return Err(WriteError::Invalid(format!(
+                    "curve {tag} ends at vertex {end}, which is not a corner"
+                )));
             }
         }
         self.curves.push(chain);
@@ -106,7 +121,12 @@ impl<'m> DiscreteModelBuilder<'m> {
     /// [`WriteError::Invalid`] for an empty patch, an unknown boundary curve
     /// or a map with mismatched lengths; [`WriteError::IndexOutOfRange`] for
     /// a face not in the mesh.
-    pub fn add_patch(&mut self, faces: Vec<FaceId>, boundary: Vec<EntityTag>, uv: Option<PatchUv>) -> Result<EntityTag, WriteError> {
+    pub fn add_patch(
+        &mut self,
+        faces: Vec<FaceId>,
+        boundary: Vec<EntityTag>,
+        uv: Option<PatchUv>,
+    ) -> Result<EntityTag, WriteError> {
         let tag = self.patches.len() as EntityTag + 1;
         if faces.is_empty() {
             return Err(WriteError::Invalid(format!("patch {tag} has no face")));
@@ -118,16 +138,26 @@ impl<'m> DiscreteModelBuilder<'m> {
                 n_points: self.mesh.n_faces(),
             });
         }
-        if let Some(c) = boundary.iter().find(|c| c.unsigned_abs() as usize > self.curves.len() || **c == 0) {
-            return Err(WriteError::Invalid(format!("patch {tag} is bounded by curve {c}, which was not added")));
+        if let Some(c) = boundary
+            .iter()
+            .find(|c| c.unsigned_abs() as usize > self.curves.len() || **c == 0)
+        {
+            return Err(WriteError::Invalid(format!(
+                "patch {tag} is bounded by curve {c}, which was not added"
+            )));
         }
         if let Some(p) = &uv
-            && (p.uv.len() != p.vertices.len() || (!p.curvature.is_empty() && p.curvature.len() != p.vertices.len()))
+            && (p.uv.len() != p.vertices.len()
+                || (!p.curvature.is_empty() && p.curvature.len() != p.vertices.len()))
         {
             return Err(WriteError::LengthMismatch {
                 what: format!("patch {tag} (u, v) map"),
                 expected: p.vertices.len(),
-                got: if p.uv.len() != p.vertices.len() { p.uv.len() } else { p.curvature.len() },
+                got: if p.uv.len() != p.vertices.len() {
+                    p.uv.len()
+                } else {
+                    p.curvature.len()
+                },
             });
         }
         self.patches.push((faces, boundary, uv));
@@ -167,7 +197,10 @@ impl<'m> DiscreteModelBuilder<'m> {
             let tag = k as EntityTag + 1;
             for &f in faces {
                 if face_patch[f.idx()] != 0 {
-                    return Err(WriteError::Invalid(format!("face {f} is in patches {} and {tag}", face_patch[f.idx()])));
+                    return Err(WriteError::Invalid(format!(
+                        "face {f} is in patches {} and {tag}",
+                        face_patch[f.idx()]
+                    )));
                 }
                 face_patch[f.idx()] = tag;
                 for v in mesh.triangles[f.idx()] {
@@ -181,14 +214,23 @@ impl<'m> DiscreteModelBuilder<'m> {
             .corners
             .iter()
             .enumerate()
-            .map(|(k, &v)| PointEntity { tag: k as EntityTag + 1, position: mesh.positions[v.idx()], physical_tags: vec![] })
+            .map(|(k, &v)| PointEntity {
+                tag: k as EntityTag + 1,
+                position: mesh.positions[v.idx()],
+                physical_tags: vec![],
+            })
             .collect();
         model.curves = self
             .curves
             .iter()
             .enumerate()
             .map(|(k, chain)| {
-                let corner = |v: &VertexId| self.corners.iter().position(|c| c == v).map_or(0, |i| i as EntityTag + 1);
+                let corner = |v: &VertexId| {
+                    self.corners
+                        .iter()
+                        .position(|c| c == v)
+                        .map_or(0, |i| i as EntityTag + 1)
+                };
                 CurveEntity {
                     tag: k as EntityTag + 1,
                     bounding_points: vec![corner(&chain[0]), -corner(&chain[chain.len() - 1])],
@@ -200,10 +242,20 @@ impl<'m> DiscreteModelBuilder<'m> {
             .patches
             .iter()
             .enumerate()
-            .map(|(k, (_, boundary, _))| SurfaceEntity { tag: k as EntityTag + 1, bounding_curves: boundary.clone(), physical_tags: vec![] })
+            .map(|(k, (_, boundary, _))| SurfaceEntity {
+                tag: k as EntityTag + 1,
+                bounding_curves: boundary.clone(),
+                physical_tags: vec![],
+            })
             .collect();
 
-        model.node_blocks = node_blocks(mesh, &class, self.corners.len(), self.curves.len(), self.patches.len());
+        model.node_blocks = node_blocks(
+            mesh,
+            &class,
+            self.corners.len(),
+            self.curves.len(),
+            self.patches.len(),
+        );
 
         let mut next_tag = n_faces + 1;
         let mut take = |n: usize| {
@@ -226,7 +278,10 @@ impl<'m> DiscreteModelBuilder<'m> {
                 entity_tag: k as EntityTag + 1,
                 element_type: ElementType::Line,
                 tags: take(chain.len() - 1),
-                nodes: chain.windows(2).flat_map(|w| [u64::from(w[0].0) + 1, u64::from(w[1].0) + 1]).collect(),
+                nodes: chain
+                    .windows(2)
+                    .flat_map(|w| [u64::from(w[0].0) + 1, u64::from(w[1].0) + 1])
+                    .collect(),
             });
         }
         for (k, (faces, _, _)) in self.patches.iter().enumerate() {
@@ -237,7 +292,10 @@ impl<'m> DiscreteModelBuilder<'m> {
                 entity_tag: k as EntityTag + 1,
                 element_type: ElementType::Triangle,
                 tags: faces.iter().map(|f| u64::from(f.0) + 1).collect(),
-                nodes: faces.iter().flat_map(|f| mesh.triangles[f.idx()].map(|v| u64::from(v.0) + 1)).collect(),
+                nodes: faces
+                    .iter()
+                    .flat_map(|f| mesh.triangles[f.idx()].map(|v| u64::from(v.0) + 1))
+                    .collect(),
             });
         }
 
@@ -253,7 +311,12 @@ impl<'m> DiscreteModelBuilder<'m> {
                 .collect();
             for (k, (faces, _, uv)) in self.patches.iter().enumerate() {
                 if let Some(uv) = uv {
-                    model.surface_parametrizations.push(surface_parametrization(mesh, k as EntityTag + 1, faces, uv)?);
+                    model.surface_parametrizations.push(surface_parametrization(
+                        mesh,
+                        k as EntityTag + 1,
+                        faces,
+                        uv,
+                    )?);
                 }
             }
         }
@@ -265,14 +328,29 @@ impl<'m> DiscreteModelBuilder<'m> {
         if v.idx() < self.mesh.n_vertices() {
             Ok(())
         } else {
-            Err(WriteError::IndexOutOfRange { what: what.to_string(), index: u64::from(v.0), n_points: self.mesh.n_vertices() })
+            Err(WriteError::IndexOutOfRange {
+                what: what.to_string(),
+                index: u64::from(v.0),
+                n_points: self.mesh.n_vertices(),
+            })
         }
     }
 }
 
 /// One node block per entity that has classified vertices, points first.
-fn node_blocks(mesh: &TriMesh, class: &[Option<(u8, EntityTag)>], n_points: usize, n_curves: usize, n_patches: usize) -> Vec<NodeBlock> {
-    let offsets = [0, n_points, n_points + n_curves, n_points + n_curves + n_patches];
+fn node_blocks(
+    mesh: &TriMesh,
+    class: &[Option<(u8, EntityTag)>],
+    n_points: usize,
+    n_curves: usize,
+    n_patches: usize,
+) -> Vec<NodeBlock> {
+    let offsets = [
+        0,
+        n_points,
+        n_points + n_curves,
+        n_points + n_curves + n_patches,
+    ];
     let mut blocks: Vec<NodeBlock> = (0..offsets[3])
         .map(|i| {
             let (dim, tag) = if i < offsets[1] {
@@ -282,7 +360,11 @@ fn node_blocks(mesh: &TriMesh, class: &[Option<(u8, EntityTag)>], n_points: usiz
             } else {
                 (2, i - offsets[2] + 1)
             };
-            NodeBlock { entity_dim: dim, entity_tag: tag as EntityTag, ..Default::default() }
+            NodeBlock {
+                entity_dim: dim,
+                entity_tag: tag as EntityTag,
+                ..Default::default()
+            }
         })
         .collect();
     for (v, c) in class.iter().enumerate() {
@@ -298,14 +380,25 @@ fn node_blocks(mesh: &TriMesh, class: &[Option<(u8, EntityTag)>], n_points: usiz
 
 /// The parametrization of patch `tag`: its map's points, and its faces (sorted
 /// like the element block) as local indices.
-fn surface_parametrization(mesh: &TriMesh, tag: EntityTag, faces: &[FaceId], uv: &PatchUv) -> Result<SurfaceParametrization, WriteError> {
+fn surface_parametrization(
+    mesh: &TriMesh,
+    tag: EntityTag,
+    faces: &[FaceId],
+    uv: &PatchUv,
+) -> Result<SurfaceParametrization, WriteError> {
     let mut local = std::collections::HashMap::with_capacity(uv.vertices.len());
     for (i, &v) in uv.vertices.iter().enumerate() {
         if v.idx() >= mesh.n_vertices() {
-            return Err(WriteError::IndexOutOfRange { what: format!("patch {tag} map"), index: u64::from(v.0), n_points: mesh.n_vertices() });
+            return Err(WriteError::IndexOutOfRange {
+                what: format!("patch {tag} map"),
+                index: u64::from(v.0),
+                n_points: mesh.n_vertices(),
+            });
         }
         if local.insert(v, i as u32).is_some() {
-            return Err(WriteError::Invalid(format!("patch {tag} map lists vertex {v} twice")));
+            return Err(WriteError::Invalid(format!(
+                "patch {tag} map lists vertex {v} twice"
+            )));
         }
     }
     let mut sorted = faces.to_vec();
@@ -316,16 +409,22 @@ fn surface_parametrization(mesh: &TriMesh, tag: EntityTag, faces: &[FaceId], uv:
             let t = mesh.triangles[f.idx()];
             let mut out = [0u32; 3];
             for (o, v) in out.iter_mut().zip(t) {
-                *o = *local
-                    .get(&v)
-                    .ok_or_else(|| WriteError::Invalid(format!("patch {tag}: vertex {v} of face {f} has no (u, v)")))?;
+                *o = *local.get(&v).ok_or_else(|| {
+                    WriteError::Invalid(format!(
+                        "patch {tag}: vertex {v} of face {f} has no (u, v)"
+                    ))
+                })?;
             }
             Ok(out)
         })
         .collect::<Result<Vec<_>, WriteError>>()?;
     Ok(SurfaceParametrization {
         surface: tag,
-        positions: uv.vertices.iter().map(|v| mesh.positions[v.idx()]).collect(),
+        positions: uv
+            .vertices
+            .iter()
+            .map(|v| mesh.positions[v.idx()])
+            .collect(),
         uv: uv.uv.clone(),
         curvature: uv.curvature.clone(),
         triangles,
@@ -352,8 +451,17 @@ mod tests {
         chain.push(ring[0]);
         let curve = b.add_curve(chain).unwrap();
         let all: Vec<VertexId> = (0..mesh.n_vertices()).map(VertexId::new).collect();
-        let uv = PatchUv { uv: all.iter().map(|v| mesh.positions[v.idx()].xy()).collect(), vertices: all, curvature: vec![] };
-        b.add_patch((0..mesh.n_faces()).map(FaceId::new).collect(), vec![curve], Some(uv)).unwrap();
+        let uv = PatchUv {
+            uv: all.iter().map(|v| mesh.positions[v.idx()].xy()).collect(),
+            vertices: all,
+            curvature: vec![],
+        };
+        b.add_patch(
+            (0..mesh.n_faces()).map(FaceId::new).collect(),
+            vec![curve],
+            Some(uv),
+        )
+        .unwrap();
         let model = b.build().unwrap();
         (mesh, model)
     }
@@ -361,22 +469,49 @@ mod tests {
     #[test]
     fn disk_is_classified_like_gmsh_does() {
         let (mesh, m) = disk_model();
-        assert_eq!((m.points.len(), m.curves.len(), m.surfaces.len()), (1, 1, 1));
+        assert_eq!(
+            (m.points.len(), m.curves.len(), m.surfaces.len()),
+            (1, 1, 1)
+        );
         assert_eq!(m.curves[0].bounding_points, [1, -1]);
         assert_eq!(m.surfaces[0].bounding_curves, [1]);
-        let sizes: Vec<(u8, usize)> = m.node_blocks.iter().map(|b| (b.entity_dim, b.tags.len())).collect();
+        let sizes: Vec<(u8, usize)> = m
+            .node_blocks
+            .iter()
+            .map(|b| (b.entity_dim, b.tags.len()))
+            .collect();
         assert_eq!(sizes, [(0, 1), (1, 17), (2, 1 + 6 + 12)]);
-        let els: Vec<(ElementType, usize)> = m.element_blocks.iter().map(|b| (b.element_type, b.tags.len())).collect();
-        assert_eq!(els, [(ElementType::Point, 1), (ElementType::Line, 18), (ElementType::Triangle, mesh.n_faces())]);
+        let els: Vec<(ElementType, usize)> = m
+            .element_blocks
+            .iter()
+            .map(|b| (b.element_type, b.tags.len()))
+            .collect();
+        assert_eq!(
+            els,
+            [
+                (ElementType::Point, 1),
+                (ElementType::Line, 18),
+                (ElementType::Triangle, mesh.n_faces())
+            ]
+        );
         assert_eq!(m.element_blocks[2].tags[0], 1);
         assert_eq!(m.element_blocks[0].tags[0], mesh.n_faces() as u64 + 1);
         assert_eq!(m.curve_parametrizations[0].points.len(), 19);
-        assert_eq!(m.curve_parametrizations[0].points[0], m.curve_parametrizations[0].points[18]);
+        assert_eq!(
+            m.curve_parametrizations[0].points[0],
+            m.curve_parametrizations[0].points[18]
+        );
         let p = &m.surface_parametrizations[0];
-        assert_eq!((p.positions.len(), p.triangles.len()), (mesh.n_vertices(), mesh.n_faces()));
+        assert_eq!(
+            (p.positions.len(), p.triangles.len()),
+            (mesh.n_vertices(), mesh.n_faces())
+        );
         // Triangles map back to the mesh's faces, in element-block order.
         for (f, t) in p.triangles.iter().enumerate() {
-            assert_eq!(t.map(|i| p.positions[i as usize]), mesh.corners(FaceId::new(f)));
+            assert_eq!(
+                t.map(|i| p.positions[i as usize]),
+                mesh.corners(FaceId::new(f))
+            );
         }
     }
 
@@ -387,16 +522,27 @@ mod tests {
         b.add_corner(VertexId(0)).unwrap();
         assert!(b.add_corner(VertexId(0)).is_err());
         assert!(b.add_corner(VertexId(99)).is_err());
-        assert!(matches!(b.add_curve(vec![VertexId(0), VertexId(1)]), Err(WriteError::Invalid(_))));
+        assert!(matches!(
+            b.add_curve(vec![VertexId(0), VertexId(1)]),
+            Err(WriteError::Invalid(_))
+        ));
         b.add_corner(VertexId(2)).unwrap();
-        b.add_curve(vec![VertexId(0), VertexId(1), VertexId(2)]).unwrap();
+        b.add_curve(vec![VertexId(0), VertexId(1), VertexId(2)])
+            .unwrap();
         assert!(b.add_patch(vec![], vec![1], None).is_err());
         assert!(b.add_patch(vec![FaceId(0)], vec![2], None).is_err());
-        b.add_patch(vec![FaceId(0), FaceId(1)], vec![1], None).unwrap();
+        b.add_patch(vec![FaceId(0), FaceId(1)], vec![1], None)
+            .unwrap();
         b.add_patch(vec![FaceId(1)], vec![], None).unwrap();
-        assert!(matches!(b.build(), Err(WriteError::Invalid(m)) if m.contains("face 1 is in patches 1 and 2")));
+        assert!(
+            matches!(b.build(), Err(WriteError::Invalid(m)) if m.contains("face 1 is in patches 1 and 2"))
+        );
         let mut b = DiscreteModelBuilder::new(&mesh);
-        let uv = PatchUv { vertices: vec![VertexId(0), VertexId(1)], uv: vec![Vec2::zeros(); 2], curvature: vec![] };
+        let uv = PatchUv {
+            vertices: vec![VertexId(0), VertexId(1)],
+            uv: vec![Vec2::zeros(); 2],
+            curvature: vec![],
+        };
         b.add_patch(vec![FaceId(0)], vec![], Some(uv)).unwrap();
         assert!(matches!(b.build(), Err(WriteError::Invalid(m)) if m.contains("has no (u, v)")));
     }
