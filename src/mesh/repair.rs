@@ -58,6 +58,9 @@ pub struct RepairReport {
     pub n_vertices_welded_tolerance: usize,
     /// Absolute weld tolerance used (relative tolerance × bounding-box diagonal); 0 = exact only.
     pub weld_tolerance_abs: f64,
+    /// True when the tolerance weld exceeded its work bound (vertices packed
+    /// far denser than the tolerance) and only the exact weld was applied.
+    pub tolerance_weld_abandoned: bool,
     /// Triangles removed because their area is zero up to round-off.
     pub n_zero_area_triangles_removed: usize,
     /// Triangles removed because they use a vertex twice (after welding).
@@ -135,6 +138,7 @@ pub fn repair_triangle_soup(
     report.n_vertices_welded_exact = weld.n_welded_exact;
     report.n_vertices_welded_tolerance = weld.n_welded_tolerance;
     report.weld_tolerance_abs = weld.tolerance;
+    report.tolerance_weld_abandoned = weld.tolerance_weld_abandoned;
     for t in &mut triangles {
         *t = t.map(|v| weld.new_index[v as usize]);
     }

@@ -17,6 +17,13 @@
 //! Each cluster keeps the position of its lowest-index vertex, so welding
 //! never moves a vertex to a place that was not in the input.
 //!
+//! **Work bound.** Real meshes have a few candidates per vertex. A file
+//! whose vertices are packed much closer than δ (hundreds of thousands within
+//! a few δ of each other) would make the pair scan quadratic; to keep a
+//! hostile upload from stalling a worker, the scan stops after
+//! `64·n + 10⁶` distance checks and the tolerance weld is abandoned (the
+//! exact weld stands) and reported as such ([`Weld::tolerance_weld_abandoned`]).
+//!
 //! A relative tolerance below 1e-14 (or not finite) is treated as 0: such a
 //! δ is below the resolution of `f64` coordinates at model scale, where only
 //! the exact weld is meaningful.
@@ -48,6 +55,8 @@ pub struct Weld {
     pub n_welded_tolerance: usize,
     /// Absolute tolerance δ used; 0 when only the exact weld ran.
     pub tolerance: f64,
+    /// True when the tolerance weld hit its work bound and was not applied.
+    pub tolerance_weld_abandoned: bool,
 }
 
 /// Weld exactly, then within `tolerance_rel · D` (see the module doc).
@@ -61,12 +70,28 @@ pub fn weld_vertices(positions: &[Vec3], tolerance_rel: f64) -> Weld {
         0.0
     };
     if tolerance <= 0.0 {
-        return Weld { new_index: exact_index, positions: exact_positions, n_welded_exact, n_welded_tolerance: 0, tolerance: 0.0 };
+        return Weld {
+            new_index: exact_index,
+            positions: exact_positions,
+            n_welded_exact,
+            n_welded_tolerance: 0,
+            tolerance: 0.0,
+            tolerance_weld_abandoned: false,
+        };
     }
-    let (cluster_index, cluster_positions) = weld_within(&exact_positions, tolerance);
+    let Some((cluster_index, cluster_positions)) = weld_within(&exact_positions, tolerance) else {
+        return Weld {
+            new_index: exact_index,
+            positions: exact_positions,
+            n_welded_exact,
+            n_welded_tolerance: 0,
+            tolerance,
+            tolerance_weld_abandoned: true,
+        };
+    };
     let n_welded_tolerance = exact_positions.len() - cluster_positions.len();
     let new_index = exact_index.iter().map(|&i| cluster_index[i as usize]).collect();
-    Weld { new_index, positions: cluster_positions, n_welded_exact, n_welded_tolerance, tolerance }
+    Weld { new_index, positions: cluster_positions, n_welded_exact, n_welded_tolerance, tolerance, tolerance_weld_abandoned: false }
 }
 
 /// Coordinate bits with `−0.0` mapped to `0.0`.
@@ -103,15 +128,17 @@ pub fn weld_exact(positions: &[Vec3]) -> (Vec<u32>, Vec<Vec3>) {
 
 /// Join vertices closer than `tolerance` (absolute, > 0), transitively.
 /// Returns the new index of every vertex and one position per cluster (its
-/// lowest-index vertex's), clusters numbered by their lowest index.
-pub fn weld_within(positions: &[Vec3], tolerance: f64) -> (Vec<u32>, Vec<Vec3>) {
+/// lowest-index vertex's), clusters numbered by their lowest index; `None`
+/// when the work bound of the module doc is exceeded.
+pub fn weld_within(positions: &[Vec3], tolerance: f64) -> Option<(Vec<u32>, Vec<Vec3>)> {
     let n = positions.len();
-    let Some(bbox) = BoundingBox::of_points(positions) else { return (Vec::new(), Vec::new()) };
+    let Some(bbox) = BoundingBox::of_points(positions) else { return Some((Vec::new(), Vec::new())) };
     let h = 4.0 * tolerance;
     // Cells per axis must fit i64 comfortably; a tolerance that fine welds nothing new.
     if h.is_nan() || h <= 0.0 || (bbox.max - bbox.min).max() / h > 1e15 {
-        return ((0..n as u32).collect(), positions.to_vec());
+        return Some(((0..n as u32).collect(), positions.to_vec()));
     }
+    let mut budget = 64 * n as u64 + 1_000_000;
     let cell_of = |c: f64, axis: usize| ((c - bbox.min[axis]) / h).floor() as i64;
     let cell = |p: &Vec3| [cell_of(p.x, 0), cell_of(p.y, 1), cell_of(p.z, 2)];
 
@@ -147,8 +174,14 @@ pub fn weld_within(positions: &[Vec3], tolerance: f64) -> (Vec<u32>, Vec<Vec3>) 
                     let mut q = head;
                     while q != u32::MAX {
                         // Each pair once: q < i.
-                        if (q as usize) < i && (positions[q as usize] - p).norm_squared() <= tol2 {
-                            sets.union(q, i as u32);
+                        if (q as usize) < i {
+                            if budget == 0 {
+                                return None;
+                            }
+                            budget -= 1;
+                            if (positions[q as usize] - p).norm_squared() <= tol2 {
+                                sets.union(q, i as u32);
+                            }
                         }
                         q = next[q as usize];
                     }
@@ -168,7 +201,7 @@ pub fn weld_within(positions: &[Vec3], tolerance: f64) -> (Vec<u32>, Vec<Vec3>) 
         }
         new_index.push(label_of_root[r]);
     }
-    (new_index, out)
+    Some((new_index, out))
 }
 
 #[cfg(test)]
@@ -213,7 +246,7 @@ mod tests {
                 let dir = Vec3::new(rng.random::<f64>() - 0.5, rng.random::<f64>() - 0.5, rng.random::<f64>() - 0.5).normalize();
                 pts.push(base + dir * d * 0.999_999);
             }
-            let (idx, out) = weld_within(&pts, tol);
+            let (idx, out) = weld_within(&pts, tol).unwrap();
             let n = pts.len();
             let mut sets = DisjointSets::new(n);
             for i in 0..n {
@@ -243,5 +276,20 @@ mod tests {
         }
         assert_eq!(weld_vertices(&p, 1e-6).positions.len(), 2);
         assert!(weld_vertices(&[], 1e-6).positions.is_empty());
+    }
+
+    #[test]
+    fn packed_clusters_hit_the_work_bound() {
+        // 4000 distinct points within 1e-9 of each other plus one far point:
+        // 8 million pairs are within the tolerance.
+        let mut p: Vec<Vec3> = (0..4000).map(|i| Vec3::new(i as f64 * 1e-13, 0.0, 0.0)).collect();
+        p.push(Vec3::new(1.0, 1.0, 1.0));
+        let w = weld_vertices(&p, 1e-6);
+        assert!(w.tolerance_weld_abandoned);
+        assert_eq!((w.positions.len(), w.n_welded_tolerance), (4001, 0));
+        // Fewer points stay within the bound and weld.
+        let w = weld_vertices(&p[3900..], 1e-6);
+        assert!(!w.tolerance_weld_abandoned);
+        assert_eq!(w.positions.len(), 2);
     }
 }
