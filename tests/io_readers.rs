@@ -654,15 +654,32 @@ fn perf_binary_stl_2m_triangles() {
     .unwrap();
     let t_read = t.elapsed();
     let t = Instant::now();
-    let w = meshatlas::mesh::weld::weld_vertices(&raw.positions, opts.weld_tolerance);
-    let t_weld = t.elapsed();
-    drop((raw, w));
+    let (_, exact) = meshatlas::mesh::weld::weld_exact(&raw.positions);
+    let t_exact = t.elapsed();
+    let t = Instant::now();
+    let tol = opts.weld_tolerance * meshatlas::geom::BoundingBox::of_points(&exact).unwrap().diagonal();
+    let within = meshatlas::mesh::weld::weld_within(&exact, tol).unwrap();
+    let t_within = t.elapsed();
+    assert_eq!(within.1.len(), 1_000_000);
+    let t = Instant::now();
+    let (mesh, _) = meshatlas::mesh::repair::repair_triangle_soup(raw.positions, raw.triangles, opts.weld_tolerance).unwrap();
+    let t_repair = t.elapsed();
+    let t = Instant::now();
+    let topo = meshatlas::mesh::Topology::new(&mesh);
+    let t_topo = t.elapsed();
+    let t = Instant::now();
+    let _ = meshatlas::mesh::summary::topology_summary(&mesh, &topo);
+    let t_summary = t.elapsed();
+    eprintln!(
+        "phases: exact weld {t_exact:?}, tolerance weld {t_within:?}, repair_triangle_soup (both welds, cleaning, orientation, summary) {t_repair:?}, of which Topology::new {t_topo:?}, topology_summary {t_summary:?}"
+    );
+    drop((mesh, topo, exact, within));
     let t = Instant::now();
     let l = load_path(&path, None, &opts).unwrap();
     let t_load = t.elapsed();
     std::fs::remove_file(&path).ok();
     eprintln!(
-        "2M-triangle binary STL ({len} bytes): read {t_read:?}, weld (exact + tolerance) {t_weld:?}, full load_path (read, weld, repair, orient, topology summary) {t_load:?}"
+        "2M-triangle binary STL ({len} bytes): read {t_read:?}, full load_path (read, weld, repair, orient, topology summary) {t_load:?}"
     );
     assert_eq!((l.surface.n_faces(), l.surface.n_vertices(), l.repair.genus), (2_000_000, 1_000_000, Some(1)));
     assert!(t_load < Duration::from_secs(10), "{t_load:?}");

@@ -189,18 +189,22 @@ pub fn finish(raw: RawMesh, format: Format, opts: &LoadOptions) -> Result<Loaded
 
     let volume = (!raw.tets.is_empty()).then(|| tet_mesh(&raw.positions, &raw.tets));
     let from_boundary = raw.triangles.is_empty();
-    let (positions, triangles, n_volume_only) = if from_boundary {
-        let Some((vol, _)) = &volume else {
-            return Err(IoError::NoTriangles { format, detail: describe_contents(&raw) });
-        };
-        let faces = tet_boundary(vol);
-        let mut on_boundary = vec![false; vol.n_vertices()];
-        faces.iter().flatten().for_each(|&v| on_boundary[v as usize] = true);
-        let interior = on_boundary.iter().filter(|&&b| !b).count();
-        (vol.positions.clone(), faces, interior)
-    } else {
-        let tet_only = (0..n_nodes).filter(|&v| used_by_tet[v] && !used_by_tri[v]).count();
-        (raw.positions.clone(), raw.triangles.clone(), tet_only)
+    if from_boundary && volume.is_none() {
+        return Err(IoError::NoTriangles { format, detail: describe_contents(&raw) });
+    }
+    let RawMesh { positions, triangles, skipped, n_polygons_triangulated, .. } = raw;
+    let (positions, triangles, n_volume_only) = match &volume {
+        Some((vol, _)) if from_boundary => {
+            let faces = tet_boundary(vol);
+            let mut on_boundary = vec![false; vol.n_vertices()];
+            faces.iter().flatten().for_each(|&v| on_boundary[v as usize] = true);
+            let interior = on_boundary.iter().filter(|&&b| !b).count();
+            (vol.positions.clone(), faces, interior)
+        }
+        _ => {
+            let tet_only = (0..n_nodes).filter(|&v| used_by_tet[v] && !used_by_tri[v]).count();
+            (positions, triangles, tet_only)
+        }
     };
     let n_input_triangles = triangles.len();
     let (surface, mut report) = repair_triangle_soup(positions, triangles, opts.weld_tolerance).map_err(|e| {
@@ -224,8 +228,8 @@ pub fn finish(raw: RawMesh, format: Format, opts: &LoadOptions) -> Result<Loaded
     }
     report.n_input_vertices = n_nodes;
     report.n_input_triangles = n_input_triangles;
-    report.skipped_elements = raw.skipped;
-    report.n_polygons_fan_triangulated = raw.n_polygons_triangulated;
+    report.skipped_elements = skipped;
+    report.n_polygons_fan_triangulated = n_polygons_triangulated;
     report.surface_from_volume_boundary = from_boundary;
     let volume = volume.map(|(vol, stats)| {
         report.n_tets = vol.n_tets();

@@ -11,9 +11,11 @@
 //! `|p − q| ≤ δ` are joined, and welding takes the transitive closure of that
 //! relation (union–find): a cluster is a connected component of the graph
 //! "closer than δ". Candidates come from a spatial hash grid of cell size
-//! `h = 4δ`: for a point only the cells overlapping the box `p ± 1.01δ` are
-//! visited (one to eight, usually one), so the cost is `O(n)` for meshes
-//! whose vertices are not much denser than δ; there is no `O(n²)` pass.
+//! `h = 8δ`: for a point only the cells overlapping the box `p ± 1.01δ` are
+//! visited (one to eight, about two on average); its own cell needs no
+//! lookup (points are chained per cell in insertion order). The cost is
+//! `O(n)` for meshes whose vertices are not much denser than δ; there is no
+//! `O(n²)` pass.
 //! Each cluster keeps the position of its lowest-index vertex, so welding
 //! never moves a vertex to a place that was not in the input.
 //!
@@ -105,19 +107,18 @@ fn exact_key(p: &Vec3) -> [u64; 3] {
 pub fn weld_exact(positions: &[Vec3]) -> (Vec<u32>, Vec<Vec3>) {
     let state = foldhash::fast::RandomState::default();
     let hash = |k: &[u64; 3]| state.hash_one(k);
-    let mut table: HashTable<u32> = HashTable::with_capacity(positions.len() / 2 + 16);
-    let mut unique: Vec<Vec3> = Vec::with_capacity(positions.len() / 2 + 16);
-    let mut keys: Vec<[u64; 3]> = Vec::with_capacity(positions.len() / 2 + 16);
+    // Keys live in the table entries: one memory access per probe.
+    let mut table: HashTable<([u64; 3], u32)> = HashTable::with_capacity(positions.len() / 4 + 16);
+    let mut unique: Vec<Vec3> = Vec::with_capacity(positions.len() / 4 + 16);
     let mut new_index = Vec::with_capacity(positions.len());
     for p in positions {
         let k = exact_key(p);
-        let id = match table.entry(hash(&k), |&u| keys[u as usize] == k, |&u| hash(&keys[u as usize])) {
-            Entry::Occupied(o) => *o.get(),
+        let id = match table.entry(hash(&k), |e| e.0 == k, |e| hash(&e.0)) {
+            Entry::Occupied(o) => o.get().1,
             Entry::Vacant(v) => {
                 let id = unique.len() as u32;
-                v.insert(id);
+                v.insert((k, id));
                 unique.push(*p);
-                keys.push(k);
                 id
             }
         };
@@ -133,7 +134,7 @@ pub fn weld_exact(positions: &[Vec3]) -> (Vec<u32>, Vec<Vec3>) {
 pub fn weld_within(positions: &[Vec3], tolerance: f64) -> Option<(Vec<u32>, Vec<Vec3>)> {
     let n = positions.len();
     let Some(bbox) = BoundingBox::of_points(positions) else { return Some((Vec::new(), Vec::new())) };
-    let h = 4.0 * tolerance;
+    let h = 8.0 * tolerance;
     // Cells per axis must fit i64 comfortably; a tolerance that fine welds nothing new.
     if h.is_nan() || h <= 0.0 || (bbox.max - bbox.min).max() / h > 1e15 {
         return Some(((0..n as u32).collect(), positions.to_vec()));
@@ -164,14 +165,22 @@ pub fn weld_within(positions: &[Vec3], tolerance: f64) -> Option<(Vec<u32>, Vec<
     let tol2 = tolerance * tolerance;
     let pad = 1.01 * tolerance;
     for (i, p) in positions.iter().enumerate() {
+        let own = cell(p);
         let lo = [cell_of(p.x - pad, 0), cell_of(p.y - pad, 1), cell_of(p.z - pad, 2)];
         let hi = [cell_of(p.x + pad, 0), cell_of(p.y + pad, 1), cell_of(p.z + pad, 2)];
         for cx in lo[0]..=hi[0] {
             for cy in lo[1]..=hi[1] {
                 for cz in lo[2]..=hi[2] {
                     let c = [cx, cy, cz];
-                    let Some(&(_, head)) = heads.find(hash(&c), |e| e.0 == c) else { continue };
-                    let mut q = head;
+                    // In its own cell, the earlier points follow `i` in the chain.
+                    let mut q = if c == own {
+                        next[i]
+                    } else {
+                        match heads.find(hash(&c), |e| e.0 == c) {
+                            Some(&(_, head)) => head,
+                            None => continue,
+                        }
+                    };
                     while q != u32::MAX {
                         // Each pair once: q < i.
                         if (q as usize) < i {

@@ -26,7 +26,7 @@ use crate::io::msh_common::{
     lookup_nodes, prepare_nodes, read_i32, skip_items,
 };
 use crate::io::source::{Endian, MeshSink, Source, capacity_hint, show};
-use crate::io::{Format, IoError, Location};
+use crate::io::{Format, IoError};
 use std::io::BufRead;
 
 /// Largest number of tags per element accepted in binary files (Gmsh writes 2–4).
@@ -204,7 +204,7 @@ fn read_elements_binary<R: BufRead>(
                     *t = u64::try_from(v).unwrap_or(u64::MAX);
                 }
                 let v = lookup_nodes(nodes, &node_tags[..nn], u64::try_from(tag).unwrap_or(0), at)?;
-                keep_element(sink, ty, &v[..nn], Location::Byte(at_offset(at)))?;
+                keep_element(sink, ty, &v[..nn], at)?;
             }
         } else {
             skip_items(src, count as u64, record as u64, name)?;
@@ -213,14 +213,6 @@ fn read_elements_binary<R: BufRead>(
         done += count as u64;
     }
     Ok(())
-}
-
-/// The offset of a byte location (0 for lines, which do not occur here).
-fn at_offset(at: Location) -> u64 {
-    match at {
-        Location::Byte(b) => b,
-        Location::Line(_) => 0,
-    }
 }
 
 #[cfg(test)]
