@@ -55,7 +55,12 @@ pub fn write_stl_binary(mut w: impl Write, mesh: &TriMesh) -> Result<(), WriteEr
 fn check(mesh: &TriMesh) -> Result<(), WriteError> {
     for (i, p) in mesh.positions.iter().enumerate() {
         if !p.iter().all(|c| c.is_finite() && (*c as f32).is_finite()) {
-            return Err(WriteError::NonFiniteCoordinate { what: format!("vertex {i} (as f32)"), x: p.x, y: p.y, z: p.z });
+            return Err(WriteError::NonFiniteCoordinate {
+                what: format!("vertex {i} (as f32)"),
+                x: p.x,
+                y: p.y,
+                z: p.z,
+            });
         }
     }
     for (f, t) in mesh.triangles.iter().enumerate() {
