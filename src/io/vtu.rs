@@ -681,6 +681,26 @@ mod tests {
     }
 
     #[test]
+    fn convenience_writers_use_the_defaults() {
+        let m = fixtures::torus(1.0, 0.3, 6, 4);
+        let mut a = Vec::new();
+        write_surface_vtu(&mut a, &m).unwrap();
+        assert_eq!(a, write(&VtuMesh::from_surface(&m), VtuEncoding::Raw, VtuHeaderType::UInt64));
+        let tets = TetMesh {
+            positions: vec![Vec3::zeros(), Vec3::x(), Vec3::y(), Vec3::z()],
+            tets: vec![[0, 1, 2, 3].map(VertexId)],
+        };
+        let mut v = Vec::new();
+        write_volume_vtu(&mut v, &tets).unwrap();
+        let text = String::from_utf8_lossy(&v);
+        assert!(text.contains("NumberOfPoints=\"4\" NumberOfCells=\"1\""));
+        let ascii =
+            String::from_utf8(write(&VtuMesh::from_volume(&tets), VtuEncoding::Ascii, VtuHeaderType::UInt64)).unwrap();
+        assert_eq!(array_text(&ascii, "types"), "10");
+        assert_eq!(array_text(&ascii, "offsets"), "4");
+    }
+
+    #[test]
     fn validation() {
         let m = fixtures::square(1);
         let mut mesh = sample(&m);

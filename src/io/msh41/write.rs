@@ -543,6 +543,23 @@ mod tests {
     }
 
     #[test]
+    fn convenience_writers_match_the_model_path() {
+        let tri = fixtures::cube(2);
+        let mut a = Vec::new();
+        write_surface_msh41(&mut a, &tri).unwrap();
+        assert_eq!(String::from_utf8(a).unwrap(), ascii(&MshModel::from_surface(&tri)));
+        let tet = crate::mesh::TetMesh {
+            positions: vec![Vec3::zeros(), Vec3::x(), Vec3::y(), Vec3::z()],
+            tets: vec![[0, 1, 2, 3].map(crate::mesh::VertexId)],
+        };
+        let mut a = Vec::new();
+        write_volume_msh41(&mut a, &tet).unwrap();
+        let text = String::from_utf8(a).unwrap();
+        assert_eq!(section(&text, "Entities")[0], "0 0 0 1");
+        assert_eq!(section(&text, "Elements")[1..], ["3 1 4 1", "1 1 2 3 4"]);
+    }
+
+    #[test]
     fn binary_data_tags_must_fit_an_int() {
         let mut m = MshModel::from_surface(&fixtures::square(1));
         m.node_blocks[0].tags[0] = 1 << 33;
