@@ -204,13 +204,13 @@ fn process_patch(
     let n_original = patch.mesh.n_vertices();
     let interior_fraction = patch.n_interior_vertices() as f64 / n_original as f64;
     let (work, source_local_face, n_bisections) =
-        if interior_fraction < opts.refine_below_interior_fraction {
+        if interior_fraction < opts.refine_below_interior_fraction && !is_planar(&patch.mesh) {
             let target = mean_boundary_edge_length(&patch);
             let r = bisect_inner_edges(
                 &patch.mesh,
                 target,
                 opts.refine_max_passes,
-                opts.max_patch_triangles.max(patch.n_faces()) * 4,
+                refined_size_cap(patch.n_faces(), opts),
             );
             let refined = PatchMesh {
                 global_vertices: patch.global_vertices.clone(),
@@ -288,6 +288,32 @@ fn process_patch(
         sigma,
         report,
     })))
+}
+
+/// Relative flatness under which a patch counts as planar: the tolerance
+/// Gmsh uses (`Geometry.MatchMeshTolerance`, 1e-8 of the bounding-box
+/// diagonal) to replace a discrete surface's map by a plane projection.
+const PLANAR_TOLERANCE: f64 = 1e-8;
+
+/// True when every vertex lies within `PLANAR_TOLERANCE` × diagonal of the
+/// plane through the centroid normal to the summed area vector. Gmsh meshes
+/// such patches by projection and ignores their `(u, v)`, so refining a
+/// coarse planar patch would only inflate the atlas.
+fn is_planar(mesh: &TriMesh) -> bool {
+    let Some(bbox) = mesh.bounding_box() else { return true };
+    let n: crate::geom::Vec3 = (0..mesh.n_faces()).map(|f| mesh.face_area_vector(FaceId::new(f))).sum();
+    let Some(n) = n.try_normalize(0.0) else { return false };
+    let c = mesh.positions.iter().sum::<crate::geom::Vec3>() / mesh.n_vertices() as f64;
+    let tol = PLANAR_TOLERANCE * bbox.diagonal();
+    mesh.positions.iter().all(|p| (p - c).dot(&n).abs() <= tol)
+}
+
+/// Most triangles a coarse patch of `n_faces` triangles may have after
+/// bisection: `refine_max_growth` times more (at least 64), never above
+/// `max_patch_triangles`. The target length alone does not bound the work: a
+/// large flat face with a finely sampled hole has a tiny mean boundary edge.
+fn refined_size_cap(n_faces: usize, opts: &AtlasOptions) -> usize {
+    (n_faces * opts.refine_max_growth).max(64).min(opts.max_patch_triangles.max(n_faces))
 }
 
 /// Mean length of the patch's boundary edges: the target length of refinement.

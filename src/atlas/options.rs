@@ -26,6 +26,10 @@ pub struct AtlasOptions {
     /// Bisection passes at most (each roughly halves the inner edge lengths).
     /// Default 5.
     pub refine_max_passes: usize,
+    /// A refined patch has at most this many times its triangles (at least
+    /// 64 triangles, at most `max_patch_triangles`); bisection stops, longest
+    /// edges first, when the cap is reached. Default 16.
+    pub refine_max_growth: usize,
     /// A parametric triangle with area below this fraction of the patch's
     /// mean parametric area makes the map unusable, and the patch is split
     /// and redone (§4.2). Default 1e-12.
@@ -46,6 +50,7 @@ impl Default for AtlasOptions {
             max_hole_fill_vertices: 500,
             refine_below_interior_fraction: 0.25,
             refine_max_passes: 5,
+            refine_max_growth: 16,
             min_relative_uv_area: 1e-12,
             max_split_depth: 16,
             solver: MvcSolver::Bicgstab,
