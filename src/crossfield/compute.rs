@@ -266,3 +266,87 @@ pub fn face_crosses(mesh: &TriMesh, topo: &Topology, disc: &Discretization, f: &
     }
     (u, norm)
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::mesh::fixtures;
+    use crate::progress::ProgressSink;
+    use std::sync::Arc;
+    use std::sync::atomic::AtomicBool;
+
+    fn boundary_flags(topo: &Topology) -> Vec<bool> {
+        (0..topo.n_edges()).map(|e| topo.is_boundary_edge(crate::mesh::EdgeId::new(e))).collect()
+    }
+
+    #[test]
+    fn options_parse_with_defaults_and_reject_unknown_fields() {
+        let o: CrossfieldOptions = serde_json::from_str(r#"{"symmetry": 6, "boundary": "weak", "epsilon": 0.1}"#).unwrap();
+        assert_eq!((o.symmetry, o.boundary, o.epsilon), (6, BoundaryCondition::Weak, Some(0.1)));
+        assert_eq!(o.continuation_factor, 0.5);
+        assert!(serde_json::from_str::<CrossfieldOptions>(r#"{"symetry": 4}"#).is_err());
+        assert!(serde_json::from_str::<CrossfieldOptions>(r#"{"boundary": "soft"}"#).is_err());
+    }
+
+    #[test]
+    fn bad_inputs_are_reported() {
+        let mesh = fixtures::disk(3);
+        let topo = Topology::new(&mesh);
+        let flags = boundary_flags(&topo);
+        let run = |o: &CrossfieldOptions, flags: &[bool]| compute_crossfield(&mesh, &topo, flags, o, &Progress::none());
+        let bad = CrossfieldOptions { symmetry: 5, ..Default::default() };
+        assert!(matches!(run(&bad, &flags), Err(CrossfieldError::InvalidOption { name: "symmetry", .. })));
+        let bad = CrossfieldOptions { continuation_factor: 1.5, ..Default::default() };
+        assert!(matches!(run(&bad, &flags), Err(CrossfieldError::InvalidOption { .. })));
+        assert!(matches!(
+            run(&CrossfieldOptions::default(), &flags[1..]),
+            Err(CrossfieldError::AlignedEdgesLength { .. })
+        ));
+        let empty = TriMesh::default();
+        let et = Topology::new(&empty);
+        assert!(matches!(
+            compute_crossfield(&empty, &et, &[], &CrossfieldOptions::default(), &Progress::none()),
+            Err(CrossfieldError::EmptyMesh)
+        ));
+    }
+
+    struct Nothing;
+    impl ProgressSink for Nothing {
+        fn report(&self, _: &str, _: f64) {}
+    }
+
+    #[test]
+    fn cancellation_stops_the_newton_iterations() {
+        let mesh = fixtures::disk(4);
+        let topo = Topology::new(&mesh);
+        let cancel = Arc::new(AtomicBool::new(true));
+        let p = Progress::new(Arc::new(Nothing), cancel);
+        let r = compute_crossfield(&mesh, &topo, &boundary_flags(&topo), &CrossfieldOptions::default(), &p);
+        assert!(matches!(r, Err(CrossfieldError::Cancelled(_))));
+    }
+
+    #[test]
+    fn singularities_json_has_the_documented_shape() {
+        let mesh = fixtures::disk(6);
+        let topo = Topology::new(&mesh);
+        let field = compute_crossfield(&mesh, &topo, &boundary_flags(&topo), &CrossfieldOptions::default(), &Progress::none()).unwrap();
+        let mut buf = Vec::new();
+        crate::crossfield::write_singularities_json(&field, &mut buf).unwrap();
+        let v: serde_json::Value = serde_json::from_slice(&buf).unwrap();
+        assert_eq!(v["symmetry"], 4);
+        assert_eq!(v["euler_characteristic"], 1);
+        assert_eq!(v["index_sum"], 1.0);
+        let s = v["singularities"].as_array().unwrap();
+        assert_eq!(s.len(), field.singularities.len());
+        assert!(s.iter().all(|x| x["position"].as_array().unwrap().len() == 3 && x["vertex"].is_u64()));
+        let report = serde_json::to_value(&field.report).unwrap();
+        assert!(report["history"].as_array().unwrap().len() >= report["iterations"].as_u64().unwrap() as usize);
+    }
+
+    #[test]
+    fn schedule_ends_at_the_final_epsilon() {
+        let s = epsilon_schedule(1.0, 0.1, 0.5);
+        assert_eq!(s, vec![1.0, 0.5, 0.25, 0.125, 0.1]);
+        assert_eq!(epsilon_schedule(0.1, 0.1, 0.5), vec![0.1]);
+    }
+}
