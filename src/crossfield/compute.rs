@@ -231,7 +231,7 @@ fn run_continuation<'p>(
         let last = s + 1 == n_stages;
         let tol = if last { opts.tolerance } else { opts.continuation_tolerance };
         let stage_progress = progress.sub(s as f64 / n_stages as f64, (s + 1) as f64 / n_stages as f64);
-        let out = solver.minimize(f, &params_for(e), e, tol, opts.max_newton_iterations, &stage_progress, &mut report.history)?;
+        let out = solver.minimize(f, &params_for(e), e, tol, opts.max_newton_iterations, !last, &stage_progress, &mut report.history)?;
         report.iterations += out.iterations;
         report.final_residual = out.residual;
         report.energy = out.energy;

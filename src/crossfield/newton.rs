@@ -11,10 +11,12 @@
 //! near a minimizer it has very flat directions (moving a vortex: on the
 //! disk, rotating the four vortices together costs nothing in the continuum).
 //! We use a Levenberg–Marquardt safeguard on the exact Hessian: factor
-//! `H + μ M/ε²` (M the CR mass), starting from the last μ and raising it ×10
-//! until the Cholesky factorization succeeds (the negative curvature of the
-//! penalty is bounded by `M/ε²`, so μ ≈ 1 always succeeds); lower it ×10
-//! after a full step, raise it after a strongly cut one. Near a minimizer μ
+//! `H + μ M/ε²` (M the CR mass), starting from the last μ (or 10⁻⁸) and
+//! raising it ×100 until the Cholesky factorization succeeds (the negative curvature of the
+//! penalty is bounded by `M/ε²`, so μ ≈ 1 always succeeds); lower it ×100
+//! after a full step, raise it ×10 after a strongly cut one. Starting low
+//! matters: vortex motion is a nearly flat (sometimes slightly negative)
+//! direction, and a large μ would make vortices creep. Near a minimizer μ
 //! returns to 0: pure Newton, quadratic convergence. Clamping the indefinite
 //! term instead (the "modified" Hessian of [`super::energy`], kept only as a
 //! last resort) stalls in flat directions: its extra curvature in the cores
@@ -41,10 +43,16 @@ use crate::progress::Progress;
 const SHIFT: f64 = 1e-8;
 /// Armijo constant.
 const ARMIJO: f64 = 1e-4;
+/// Iterations over which an intermediate stage must decrease the energy...
+const STALL_WINDOW: usize = 5;
+/// ... by at least this relative amount, or it stops.
+const STALL_DECREASE: f64 = 1e-7;
 /// Maximum step halvings.
 const MAX_HALVINGS: usize = 40;
 /// First non-zero Levenberg–Marquardt parameter (units of 1/ε²).
-const MU_FIRST: f64 = 1e-4;
+const MU_FIRST: f64 = 1e-8;
+/// Factor by which μ is raised after a failed factorization, and lowered after a full step.
+const MU_STEP: f64 = 100.0;
 /// Factorization attempts with a raised parameter before the modified Hessian.
 const MAX_SHIFT_RAISES: usize = 6;
 
@@ -153,6 +161,7 @@ impl<'a> NewtonSolver<'a> {
         eps: f64,
         tol: f64,
         max_iter: usize,
+        stop_on_stall: bool,
         progress: &Progress,
         history: &mut Vec<NewtonRecord>,
     ) -> Result<StageOutcome, CrossfieldError> {
@@ -161,6 +170,7 @@ impl<'a> NewtonSolver<'a> {
         // Levenberg–Marquardt parameter, in units of 1/ε² (0 = pure Newton).
         let mut mu = 0.0f64;
         let mut trial = f.to_vec();
+        let mut energies: Vec<f64> = Vec::new();
         let mut out = StageOutcome {
             iterations: 0,
             residual: f64::INFINITY,
@@ -182,7 +192,13 @@ impl<'a> NewtonSolver<'a> {
                 shift: 0.0,
                 hessian: "exact",
             };
-            if res <= tol || !res.is_finite() || it == max_iter {
+            // Intermediate stages only need the vortices roughly in place:
+            // stop when the energy stalls (vortices creeping along a flat valley).
+            let stalled = stop_on_stall
+                && it >= STALL_WINDOW
+                && energies[it - STALL_WINDOW] - asm.energy <= STALL_DECREASE * asm.energy.abs();
+            energies.push(asm.energy);
+            if res <= tol || !res.is_finite() || it == max_iter || stalled {
                 out.converged = res <= tol;
                 history.push(record);
                 break;
@@ -194,7 +210,7 @@ impl<'a> NewtonSolver<'a> {
                     factored = true;
                     break;
                 }
-                mu = if mu == 0.0 { MU_FIRST } else { mu * 10.0 };
+                mu = if mu == 0.0 { MU_FIRST } else { mu * MU_STEP };
             }
             if !factored {
                 let m = self.sys.assemble(self.topo, self.disc, f, params, HessianKind::Modified);
@@ -238,7 +254,7 @@ impl<'a> NewtonSolver<'a> {
             out.iterations += 1;
             // Trust the quadratic model more after a full step, less after a cut one.
             if alpha == 1.0 {
-                mu = if mu <= MU_FIRST { 0.0 } else { mu / 10.0 };
+                mu = if mu <= MU_FIRST { 0.0 } else { mu / MU_STEP };
             } else if alpha < 0.25 {
                 mu = if mu == 0.0 { MU_FIRST } else { mu * 10.0 };
             }
