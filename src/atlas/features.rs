@@ -73,7 +73,7 @@ pub fn detect_features(mesh: &TriMesh, topo: &Topology, feature_angle_deg: f64) 
             }
         }
     }
-    let (corners, curves, curve_per_edge) = feature_curves(mesh, topo, &is_feature_edge);
+    let (corners, curves, curve_per_edge) = edge_chains(mesh, topo, &is_feature_edge);
     Features {
         is_feature_edge,
         n_sharp_edges: n_sharp,
@@ -99,8 +99,9 @@ pub fn model_faces(topo: &Topology, features: &Features) -> Components {
     face_components(topo, |e| features.is_feature_edge[e.idx()])
 }
 
-/// Corners, curves and the curve of each edge, from the feature-edge flags.
-fn feature_curves(
+/// Corners, chains and the chain of each edge, for the edges flagged in
+/// `is_feature` (feature edges here, patch borders for the atlas curves).
+pub(crate) fn edge_chains(
     mesh: &TriMesh,
     topo: &Topology,
     is_feature: &[bool],

@@ -85,6 +85,22 @@ impl CholeskySolver {
     pub fn solve_columns(&self, rhs: &mut [Vec<f64>]) -> Result<(), LinalgError> {
         solve_columns_with(&self.llt, self.n, rhs)
     }
+
+    /// Replace `x` by `A⁻¹ x` (no allocation; for use inside iterative solvers).
+    ///
+    /// # Panics
+    /// When `x.len()` differs from the matrix size.
+    pub fn solve_in_place(&self, x: &mut [f64]) {
+        assert_eq!(x.len(), self.n, "right-hand side length");
+        let n = self.n;
+        self.llt
+            .solve_in_place(faer::MatMut::from_column_major_slice_mut(x, n, 1));
+    }
+
+    /// Size of the factored matrix.
+    pub fn dim(&self) -> usize {
+        self.n
+    }
 }
 
 /// Copy columns into one dense block, solve once, copy back.

@@ -18,8 +18,23 @@ pub fn tetrahedron() -> TriMesh {
     )
 }
 
-/// Unit square `[0,1]²` in the plane `z = 0`, `n × n` cells, two triangles each.
+/// Unit square `[0,1]²` in the plane `z = 0`, `n × n` cells, two triangles
+/// each, diagonals alternating with the cell parity (a "union jack" pattern,
+/// symmetric under the square's reflections).
 pub fn square(n: usize) -> TriMesh {
+    grid_mesh_cells(
+        n,
+        n,
+        |_, _| true,
+        true,
+        |i, j| Vec3::new(i as f64 / n as f64, j as f64 / n as f64, 0.0),
+    )
+}
+
+/// Unit square with every diagonal in the same direction (the "structured"
+/// mesh of thesis appendix A.B, on which mean value coordinates are not a
+/// Laplacian).
+pub fn square_structured(n: usize) -> TriMesh {
     grid_mesh(n, n, |i, j| {
         Some(Vec3::new(i as f64 / n as f64, j as f64 / n as f64, 0.0))
     })
@@ -31,8 +46,27 @@ pub fn l_shape(n: usize) -> TriMesh {
         2 * n,
         2 * n,
         |i, j| !(i >= n && j >= n),
+        true,
         |i, j| Vec3::new(i as f64 / n as f64, j as f64 / n as f64, 0.0),
     );
+    compact(m)
+}
+
+/// A concave planar domain with a concave hole (thesis ch. 2 fig. 2.9): the
+/// L-shaped region `[0,1]² \ [2/3,1]²` with an L-shaped hole made of the
+/// squares `[1/6,1/2]×[1/6,1/3]` and `[1/6,1/3]×[1/3,1/2]`; `n` cells per unit
+/// length (a multiple of 6).
+pub fn l_plate_with_l_hole(n: usize) -> TriMesh {
+    let k = n / 6;
+    let keep = |i: usize, j: usize| {
+        let outer_notch = i >= 4 * k && j >= 4 * k;
+        let hole_bar = (k..3 * k).contains(&i) && (k..2 * k).contains(&j);
+        let hole_leg = (k..2 * k).contains(&i) && (2 * k..3 * k).contains(&j);
+        !(outer_notch || hole_bar || hole_leg)
+    };
+    let m = grid_mesh_cells(6 * k, 6 * k, keep, true, |i, j| {
+        Vec3::new(i as f64 / (6 * k) as f64, j as f64 / (6 * k) as f64, 0.0)
+    });
     compact(m)
 }
 
@@ -277,14 +311,22 @@ pub fn compact(mut mesh: TriMesh) -> TriMesh {
 
 /// Structured `nx × ny` grid with every vertex present.
 fn grid_mesh(nx: usize, ny: usize, at: impl Fn(usize, usize) -> Option<Vec3>) -> TriMesh {
-    grid_mesh_cells(nx, ny, |_, _| true, |i, j| at(i, j).expect("grid vertex"))
+    grid_mesh_cells(
+        nx,
+        ny,
+        |_, _| true,
+        false,
+        |i, j| at(i, j).expect("grid vertex"),
+    )
 }
 
-/// Structured grid keeping only the cells `(i, j)` for which `keep` holds.
+/// Structured grid keeping only the cells `(i, j)` for which `keep` holds;
+/// with `alternate` the diagonal direction flips with the cell parity.
 fn grid_mesh_cells(
     nx: usize,
     ny: usize,
     keep: impl Fn(usize, usize) -> bool,
+    alternate: bool,
     at: impl Fn(usize, usize) -> Vec3,
 ) -> TriMesh {
     let mut positions = Vec::with_capacity((nx + 1) * (ny + 1));
@@ -297,7 +339,13 @@ fn grid_mesh_cells(
     let mut tris = Vec::new();
     for j in 0..ny {
         for i in 0..nx {
-            if keep(i, j) {
+            if !keep(i, j) {
+                continue;
+            }
+            if alternate && (i + j) % 2 == 1 {
+                tris.push([id(i, j), id(i + 1, j), id(i, j + 1)]);
+                tris.push([id(i + 1, j), id(i + 1, j + 1), id(i, j + 1)]);
+            } else {
                 tris.push([id(i, j), id(i + 1, j), id(i + 1, j + 1)]);
                 tris.push([id(i, j), id(i + 1, j + 1), id(i, j + 1)]);
             }

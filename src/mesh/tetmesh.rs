@@ -65,7 +65,7 @@ impl TetMesh {
         check_elements(&self.tets, self.positions.len())?;
         for t in 0..self.tets.len() {
             let v = self.signed_volume6(TetId::new(t));
-            if !(v > 0.0) {
+            if v.is_nan() || v <= 0.0 {
                 return Err(MeshError::InvertedTet {
                     tet: t,
                     volume: v / 6.0,
