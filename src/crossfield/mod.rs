@@ -22,7 +22,7 @@ pub mod singularities;
 pub mod system;
 
 pub use compute::compute_crossfield;
-pub use output::write_singularities_json;
+pub use output::{write_crossfield_msh, write_crossfield_vtu, write_singularities_json};
 
 use crate::geom::Vec3;
 use crate::linalg::LinalgError;
