@@ -94,9 +94,9 @@ fn main() {
             field.index_sum
         );
         if verbose {
-            eprintln!("eps schedule {:?}, init {}, modified steps {}, candidates {:?}", field.report.epsilon_schedule, field.report.initial_guess, field.report.n_modified_steps, field.report.candidate_energies);
+            eprintln!("eps schedule {:?}, init {}, modified steps {}, candidates {:?} anisotropy {:.3}", field.report.epsilon_schedule, field.report.initial_guess, field.report.n_modified_steps, field.report.candidate_energies, field.report.curvature_anisotropy);
             for h in &field.report.history {
-                eprintln!("  eps {:.4} it {:2} res {:.3e} E {:.6} step {:.3} {}", h.epsilon, h.iteration, h.residual, h.energy, h.step, h.hessian);
+                eprintln!("  eps {:.4} it {:2} res {:.3e} E {:.9} step {:.3} mu {:.0e} {}", h.epsilon, h.iteration, h.residual, h.energy, h.step, h.shift, h.hessian);
             }
             for s in &field.singularities {
                 eprintln!("  sing {:+.4} at ({:.4}, {:.4}, {:.4}) r={:.4}", s.index, s.position.x, s.position.y, s.position.z, s.position.norm());

@@ -25,6 +25,10 @@ use crate::mesh::{FaceId, Topology, TriMesh};
 use crate::progress::Progress;
 use std::time::Instant;
 
+/// Below this curvature anisotropy (see [`principal_curvature_field`]) the
+/// principal directions are noise and the curvature candidate is skipped.
+const MIN_ANISOTROPY: f64 = 0.3;
+
 /// Check the options.
 fn validate_options(opts: &CrossfieldOptions) -> Result<(), CrossfieldError> {
     let bad = |name, reason: String| Err(CrossfieldError::InvalidOption { name, reason });
@@ -155,17 +159,24 @@ pub fn compute_crossfield(
                 report.epsilon_schedule = schedule.clone();
             }
         }
-        // Closed surfaces without any aligned edge get a second candidate.
-        let two = matches!(kind, InitialKind::Eigenvector(_));
+        // Closed surfaces without any aligned edge get a second candidate,
+        // unless their curvature is (nearly) isotropic.
+        let curvature = if matches!(kind, InitialKind::Eigenvector(_)) {
+            let (g, anisotropy) = principal_curvature_field(mesh, topo, &disc);
+            report.curvature_anisotropy = anisotropy;
+            (anisotropy >= MIN_ANISOTROPY).then_some(g)
+        } else {
+            None
+        };
+        let two = curvature.is_some();
         progress.set(0.05);
         let first = progress.sub(0.05, if two { 0.7 } else { 0.95 });
         run_continuation(&mut solver, &mut f, &schedule, &params_for, opts, &first, &mut report)?;
         report.candidate_energies.push((report.initial_guess.clone(), report.energy));
-        if two {
+        if let Some(mut g) = curvature {
             // Candidate 2: aligned with the principal curvature directions,
             // solved at the final ε only (a continuation from large ε would
             // bring back the eigenvector's singularities). Keep the lower energy.
-            let mut g = principal_curvature_field(mesh, topo, &disc);
             for (e, &fx) in fixed.iter().enumerate() {
                 if fx {
                     g[e] = C64::new(1.0, 0.0);

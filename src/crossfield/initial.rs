@@ -160,7 +160,11 @@ pub fn initial_field(
 /// frame) and normalized. Used as a second candidate on closed surfaces
 /// without features, where it has no singularity when the surface has no
 /// umbilic (a torus), unlike the smoothest eigenvector.
-pub fn principal_curvature_field(mesh: &crate::mesh::TriMesh, topo: &Topology, disc: &Discretization) -> Vec<C64> {
+///
+/// Also returns the anisotropy `Σ_T |z_T| / Σ_T Σ_e |β_e| ℓ_e ∈ [0, 1]`: 0 on
+/// an umbilic surface (sphere, where the directions are discretization
+/// noise), large when the principal directions are well defined.
+pub fn principal_curvature_field(mesh: &crate::mesh::TriMesh, topo: &Topology, disc: &Discretization) -> (Vec<C64>, f64) {
     use crate::mesh::{EdgeId, FaceId};
     let n_half = disc.symmetry / 2;
     // Signed dihedral angle per edge (0 on boundary and non-manifold edges).
@@ -183,6 +187,7 @@ pub fn principal_curvature_field(mesh: &crate::mesh::TriMesh, topo: &Topology, d
         })
         .collect();
     let mut q = vec![C64::new(0.0, 0.0); topo.n_edges()];
+    let (mut sum_z, mut sum_b) = (0.0, 0.0);
     for (t, fe) in topo.face_edges.iter().enumerate() {
         let (r, nrm) = super::frames::face_frame(mesh, FaceId::new(t));
         let tt = nrm.cross(&r);
@@ -191,8 +196,10 @@ pub fn principal_curvature_field(mesh: &crate::mesh::TriMesh, topo: &Topology, d
             let d = super::frames::edge_direction(mesh, topo, *e);
             let a = C64::new(d.dot(&r), d.dot(&tt));
             z += a * a * (beta[e.idx()] * disc.length_per_edge[e.idx()]);
+            sum_b += (beta[e.idx()] * disc.length_per_edge[e.idx()]).abs();
         }
         let m = z.norm();
+        sum_z += m;
         if m == 0.0 {
             continue;
         }
@@ -202,10 +209,12 @@ pub fn principal_curvature_field(mesh: &crate::mesh::TriMesh, topo: &Topology, d
         }
     }
     let max = q.iter().map(|z| z.norm()).fold(0.0, f64::max);
-    q.iter()
+    let field = q
+        .iter()
         .map(|z| {
             let m = z.norm();
             if m > 1e-12 * max && m > 0.0 { z / m } else { C64::new(1.0, 0.0) }
         })
-        .collect()
+        .collect();
+    (field, if sum_b > 0.0 { sum_z / sum_b } else { 0.0 })
 }

@@ -169,6 +169,9 @@ pub struct CrossfieldReport {
     /// Final energy of each candidate initial field tried (closed surfaces
     /// without aligned edges try two; the lower energy wins).
     pub candidate_energies: Vec<(String, f64)>,
+    /// Curvature anisotropy in [0, 1] of a closed surface without aligned
+    /// edges (the principal-curvature candidate is tried from 0.3 on).
+    pub curvature_anisotropy: f64,
     /// Total Newton iterations over all stages.
     pub iterations: usize,
     /// Newton steps that needed a Levenberg–Marquardt shift or the modified Hessian.

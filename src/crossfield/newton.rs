@@ -1,9 +1,9 @@
 //! Safeguarded Newton method on the discrete Ginzburg–Landau energy for one
 //! coherence length ε (one stage of the continuation), thesis (3.16)–(3.21).
 //!
-//! Each step solves `(H + μ M/ε²) d = −g` with a sparse Cholesky factorization
-//! whose symbolic analysis is done once and reused by every step and stage
-//! ([`CholeskySolver::refactor`]), then backtracks on the energy (Armijo,
+//! Each step solves `(H + μ M/ε²) d = −g` with a sparse (supernodal) Cholesky
+//! factorization whose symbolic analysis is done once and reused by every
+//! step and stage ([`SupernodalCholesky`]), then backtracks on the energy (Armijo,
 //! `E(f + α d) ≤ E(f) + 10⁻⁴ α gᵀd`, α halved).
 //!
 //! Why this safeguard. The Hessian is indefinite wherever `|f| < 1` (the
@@ -35,7 +35,7 @@ use super::energy::{EnergyParams, HessianKind, total_energy};
 use super::frames::{C64, Discretization};
 use super::system::NewtonSystem;
 use super::{CrossfieldError, NewtonRecord};
-use crate::linalg::CholeskySolver;
+use crate::linalg::SupernodalCholesky;
 use crate::mesh::Topology;
 use crate::progress::Progress;
 
@@ -64,7 +64,7 @@ pub struct NewtonSolver<'a> {
     pub disc: &'a Discretization,
     /// Free unknowns and Hessian structure.
     pub sys: &'a NewtonSystem,
-    chol: Option<CholeskySolver>,
+    chol: Option<SupernodalCholesky>,
     /// Number of steps that fell back to the modified Hessian.
     pub n_modified_steps: usize,
 }
@@ -108,9 +108,11 @@ impl<'a> NewtonSolver<'a> {
             self.sys.add_to_diagonal(&mut values, mass, mu);
         }
         let a = self.sys.matrix(values)?;
-        match &mut self.chol {
-            Some(c) => c.refactor(&a)?,
-            None => self.chol = Some(CholeskySolver::new(&a)?),
+        if self.chol.is_none() {
+            self.chol = Some(SupernodalCholesky::analyze(&a)?);
+        }
+        if let Some(c) = &mut self.chol {
+            c.factor(&a)?;
         }
         Ok(())
     }
@@ -128,11 +130,11 @@ impl<'a> NewtonSolver<'a> {
     ///
     /// # Errors
     /// [`CrossfieldError::Linalg`] when nothing was factored or sizes differ.
-    pub fn solve(&self, rhs: &mut Vec<f64>) -> Result<(), CrossfieldError> {
-        let c = self.chol.as_ref().ok_or(CrossfieldError::Linalg(
+    pub fn solve(&mut self, rhs: &mut [f64]) -> Result<(), CrossfieldError> {
+        let c = self.chol.as_mut().ok_or(CrossfieldError::Linalg(
             crate::linalg::LinalgError::Internal("solve before factorization".into()),
         ))?;
-        c.solve_columns(std::slice::from_mut(rhs))?;
+        c.solve_in_place(rhs)?;
         Ok(())
     }
 
