@@ -32,12 +32,35 @@ fn load(spec: &str) -> TriMesh {
     }
 }
 
-fn gmsh_seconds(path: &str) -> Option<f64> {
+/// Seconds Gmsh 4.15 spends in `computeCrossField()` on `path`. Gmsh's
+/// Python API segfaults right after the computation here (after its
+/// "NL smooth" iterations converge), so the time is measured from a stamp
+/// printed just before the call to the end of the process (marked `*`).
+fn gmsh_seconds(path: &str) -> Option<(f64, bool)> {
     let script = format!(
-        "import gmsh, time\ngmsh.initialize()\ngmsh.option.setNumber('General.Terminal', 0)\ngmsh.merge({path:?})\nt = time.time()\ngmsh.model.mesh.computeCrossField()\nprint(time.time() - t)\ngmsh.finalize()\n"
+        "import gmsh, time\ngmsh.initialize()\ngmsh.option.setNumber('General.Terminal', 0)\ngmsh.merge({path:?})\nprint('GMSH_START', time.time(), flush=True)\nt = time.time()\ngmsh.model.mesh.computeCrossField()\nprint('GMSH_SECONDS', time.time() - t, flush=True)\ngmsh.finalize()\n"
     );
-    let out = std::process::Command::new("python3").arg("-c").arg(script).output().ok()?;
-    String::from_utf8_lossy(&out.stdout).trim().lines().last()?.parse().ok()
+    let out = std::process::Command::new("python3")
+        .arg("-c")
+        .arg(script)
+        .output()
+        .ok()?;
+    let end = std::time::SystemTime::now()
+        .duration_since(std::time::UNIX_EPOCH)
+        .ok()?
+        .as_secs_f64();
+    let text = String::from_utf8_lossy(&out.stdout);
+    let field = |key: &str| -> Option<f64> {
+        text.lines()
+            .find_map(|l| l.strip_prefix(key))?
+            .trim()
+            .parse()
+            .ok()
+    };
+    match field("GMSH_SECONDS ") {
+        Some(s) => Some((s, false)),
+        None => field("GMSH_START ").map(|s| (end - s, true)),
+    }
 }
 
 fn main() {
@@ -61,15 +84,23 @@ fn main() {
             _ => inputs.push(a),
         }
     }
-    println!("| input | triangles | meshatlas s | Newton its | singularities | χ | index sum | gmsh s | ratio |");
+    println!(
+        "| input | triangles | meshatlas s | Newton its | singularities | χ | index sum | gmsh s | ratio |"
+    );
     println!("|---|---:|---:|---:|---|---:|---:|---:|---:|");
     for input in inputs {
         let mesh = load(&input);
         let t0 = Instant::now();
         let topo = Topology::new(&mesh);
         let features = detect_features(&mesh, &topo, 40.0);
-        let field = compute_crossfield(&mesh, &topo, &features.is_feature_edge, &opts, &Progress::none())
-            .expect("crossfield");
+        let field = compute_crossfield(
+            &mesh,
+            &topo,
+            &features.is_feature_edge,
+            &opts,
+            &Progress::none(),
+        )
+        .expect("crossfield");
         let secs = t0.elapsed().as_secs_f64();
         let counts: Vec<String> = field
             .report
@@ -79,7 +110,10 @@ fn main() {
             .collect();
         let (g, ratio) = if gmsh && !input.contains(':') {
             match gmsh_seconds(&input) {
-                Some(g) => (format!("{g:.2}"), format!("{:.0}×", g / secs)),
+                Some((g, crashed)) => (
+                    format!("{g:.2}{}", if crashed { "*" } else { "" }),
+                    format!("{:.0}×", g / secs),
+                ),
                 None => ("n/a".into(), "".into()),
             }
         } else {
@@ -94,12 +128,29 @@ fn main() {
             field.index_sum
         );
         if verbose {
-            eprintln!("eps schedule {:?}, init {}, modified steps {}, candidates {:?} anisotropy {:.3}", field.report.epsilon_schedule, field.report.initial_guess, field.report.n_modified_steps, field.report.candidate_energies, field.report.curvature_anisotropy);
+            eprintln!(
+                "eps schedule {:?}, init {}, modified steps {}, candidates {:?} anisotropy {:.3}",
+                field.report.epsilon_schedule,
+                field.report.initial_guess,
+                field.report.n_modified_steps,
+                field.report.candidate_energies,
+                field.report.curvature_anisotropy
+            );
             for h in &field.report.history {
-                eprintln!("  eps {:.4} it {:2} res {:.3e} E {:.9} step {:.3} mu {:.0e} {}", h.epsilon, h.iteration, h.residual, h.energy, h.step, h.shift, h.hessian);
+                eprintln!(
+                    "  eps {:.4} it {:2} res {:.3e} E {:.9} step {:.3} mu {:.0e} {}",
+                    h.epsilon, h.iteration, h.residual, h.energy, h.step, h.shift, h.hessian
+                );
             }
             for s in &field.singularities {
-                eprintln!("  sing {:+.4} at ({:.4}, {:.4}, {:.4}) r={:.4}", s.index, s.position.x, s.position.y, s.position.z, s.position.norm());
+                eprintln!(
+                    "  sing {:+.4} at ({:.4}, {:.4}, {:.4}) r={:.4}",
+                    s.index,
+                    s.position.x,
+                    s.position.y,
+                    s.position.z,
+                    s.position.norm()
+                );
             }
         }
     }

@@ -16,7 +16,14 @@ use meshatlas::progress::Progress;
 fn crossfield(mesh: &TriMesh, opts: &CrossfieldOptions) -> Crossfield {
     let topo = Topology::new(mesh);
     let features = detect_features(mesh, &topo, 40.0);
-    compute_crossfield(mesh, &topo, &features.is_feature_edge, opts, &Progress::none()).expect("crossfield")
+    compute_crossfield(
+        mesh,
+        &topo,
+        &features.is_feature_edge,
+        opts,
+        &Progress::none(),
+    )
+    .expect("crossfield")
 }
 
 /// Poincaré–Hopf (3.13): the index sum equals χ.
@@ -108,7 +115,10 @@ fn unit_disk_has_four_singularities_on_the_optimal_circle() {
         // Tolerance shrinks with h (ε = 2h by default).
         assert!(err < 0.06 + 1.5 * h, "rings {rings}: max |r − r*| = {err}");
         // Square pattern: consecutive angles 90° apart.
-        let mut ang: Vec<f64> = interior.iter().map(|s| s.position.y.atan2(s.position.x)).collect();
+        let mut ang: Vec<f64> = interior
+            .iter()
+            .map(|s| s.position.y.atan2(s.position.x))
+            .collect();
         ang.sort_by(f64::total_cmp);
         for k in 0..4 {
             let d = (ang[(k + 1) % 4] - ang[k]).rem_euclid(std::f64::consts::TAU);
@@ -116,14 +126,21 @@ fn unit_disk_has_four_singularities_on_the_optimal_circle() {
         }
         errors.push(err);
     }
-    assert!(errors[1] <= errors[0] + 0.01, "error does not shrink: {errors:?}");
+    assert!(
+        errors[1] <= errors[0] + 0.01,
+        "error does not shrink: {errors:?}"
+    );
 }
 
 /// Sorted distances from each point to the others.
 fn neighbour_distances(p: &[Vec3]) -> Vec<Vec<f64>> {
     p.iter()
         .map(|a| {
-            let mut d: Vec<f64> = p.iter().filter(|b| *b != a).map(|b| (a - b).norm()).collect();
+            let mut d: Vec<f64> = p
+                .iter()
+                .filter(|b| *b != a)
+                .map(|b| (a - b).norm())
+                .collect();
             d.sort_by(f64::total_cmp);
             d
         })
@@ -136,9 +153,18 @@ fn unit_sphere_crosses_sit_on_a_square_antiprism() {
         let mesh = fixtures::icosphere(level);
         let field = crossfield(&mesh, &CrossfieldOptions::default());
         assert_poincare_hopf(&field);
-        assert_eq!(field.singularities.len(), 8, "level {level}: {:?}", field.report.singularity_counts);
+        assert_eq!(
+            field.singularities.len(),
+            8,
+            "level {level}: {:?}",
+            field.report.singularity_counts
+        );
         assert!(field.singularities.iter().all(|s| s.index == 0.25));
-        let p: Vec<Vec3> = field.singularities.iter().map(|s| s.position.normalize()).collect();
+        let p: Vec<Vec3> = field
+            .singularities
+            .iter()
+            .map(|s| s.position.normalize())
+            .collect();
         for d in neighbour_distances(&p) {
             // Antiprism: 4 nearest at nearly equal distance, then a gap.
             // (A cube has 3 nearest at a, then 3 at a√2.)
@@ -150,20 +176,36 @@ fn unit_sphere_crosses_sit_on_a_square_antiprism() {
 
 #[test]
 fn unit_sphere_asterisks_sit_on_an_icosahedron() {
-    let mesh = fixtures::icosphere(3);
-    let opts = CrossfieldOptions {
-        symmetry: 6,
-        ..Default::default()
-    };
-    let field = crossfield(&mesh, &opts);
-    assert_poincare_hopf(&field);
-    assert_eq!(field.singularities.len(), 12, "{:?}", field.report.singularity_counts);
-    assert!(field.singularities.iter().all(|s| (s.index - 1.0 / 6.0).abs() < 1e-12));
-    let p: Vec<Vec3> = field.singularities.iter().map(|s| s.position.normalize()).collect();
-    for d in neighbour_distances(&p) {
-        // Icosahedron: 5 neighbours at the edge length 1.0515, the next at 1.7013.
-        assert!(d[4] / d[0] < 1.1, "{d:?}");
-        assert!(d[5] / d[4] > 1.4, "{d:?}");
+    for level in [3, 4] {
+        let mesh = fixtures::icosphere(level);
+        let opts = CrossfieldOptions {
+            symmetry: 6,
+            ..Default::default()
+        };
+        let field = crossfield(&mesh, &opts);
+        assert_poincare_hopf(&field);
+        assert_eq!(
+            field.singularities.len(),
+            12,
+            "{:?}",
+            field.report.singularity_counts
+        );
+        assert!(
+            field
+                .singularities
+                .iter()
+                .all(|s| (s.index - 1.0 / 6.0).abs() < 1e-12)
+        );
+        let p: Vec<Vec3> = field
+            .singularities
+            .iter()
+            .map(|s| s.position.normalize())
+            .collect();
+        for d in neighbour_distances(&p) {
+            // Icosahedron: 5 neighbours at the edge length 1.0515, the next at 1.7013.
+            assert!(d[4] / d[0] < 1.1, "{d:?}");
+            assert!(d[5] / d[4] > 1.4, "{d:?}");
+        }
     }
 }
 
@@ -171,7 +213,10 @@ fn unit_sphere_asterisks_sit_on_an_icosahedron() {
 fn torus_has_no_singularity() {
     // ε = h (default): on these resolutions the singularity-free field has the
     // lower GL energy (at ε ≳ 0.07 twelve ±1/4 vortices still win, as in the thesis).
-    let mut meshes = vec![("torus 140×56".to_string(), fixtures::torus(1.0, 0.4, 140, 56))];
+    let mut meshes = vec![(
+        "torus 140×56".to_string(),
+        fixtures::torus(1.0, 0.4, 140, 56),
+    )];
     if let Some(p) = crossfield_common::data_path("gmsh/torus_20k.stl") {
         meshes.push(("torus_20k.stl".into(), crossfield_common::read_stl(&p)));
     }
@@ -179,7 +224,12 @@ fn torus_has_no_singularity() {
         let field = crossfield(&mesh, &CrossfieldOptions::default());
         assert_poincare_hopf(&field);
         assert_eq!(field.euler_characteristic, 0);
-        assert!(field.singularities.is_empty(), "{name}: {:?} {:?}", field.report.singularity_counts, field.report.candidate_energies);
+        assert!(
+            field.singularities.is_empty(),
+            "{name}: {:?} {:?}",
+            field.report.singularity_counts,
+            field.report.candidate_energies
+        );
         assert!(field.norm_per_face.iter().all(|&x| x > 0.5), "{name}");
     }
 }
@@ -196,7 +246,13 @@ fn l_shape_strong_boundary_indices_are_at_the_corners() {
         let mut got: Vec<(i64, i64, f64)> = field
             .singularities
             .iter()
-            .map(|s| ((s.position.x * 2.0).round() as i64, (s.position.y * 2.0).round() as i64, s.index))
+            .map(|s| {
+                (
+                    (s.position.x * 2.0).round() as i64,
+                    (s.position.y * 2.0).round() as i64,
+                    s.index,
+                )
+            })
             .collect();
         got.sort_by(|a, b| a.partial_cmp(b).unwrap());
         let want = vec![
@@ -213,22 +269,44 @@ fn l_shape_strong_boundary_indices_are_at_the_corners() {
 }
 
 #[test]
-fn cad_part_with_feature_edges_satisfies_poincare_hopf() {
-    let Some(path) = crossfield_common::data_path("corpus/cylinder_coarse.stl") else {
-        eprintln!("cylinder_coarse.stl not found: skipped");
-        return;
-    };
-    let mesh = crossfield_common::read_stl(&path);
-    let field = crossfield(&mesh, &CrossfieldOptions::default());
-    assert_eq!(field.euler_characteristic, 2);
-    assert_poincare_hopf(&field);
-    // Cross aligned with the feature (cap) edges: every feature edge keeps f = 1.
-    let topo = Topology::new(&mesh);
-    let features = detect_features(&mesh, &topo, 40.0);
-    for (e, &a) in features.is_feature_edge.iter().enumerate() {
-        if a {
-            assert_eq!(field.f_per_edge[e], [1.0, 0.0]);
+fn cad_parts_with_feature_edges_satisfy_poincare_hopf() {
+    let mut parts = Vec::new();
+    if let Some(p) = crossfield_common::data_path("corpus/cylinder_coarse.stl") {
+        parts.push(crossfield_common::read_stl(&p));
+    }
+    if let Some(p) = crossfield_common::data_path("corpus/fandisk.obj") {
+        parts.push(crossfield_common::read_obj(&p));
+    }
+    assert!(!parts.is_empty(), "corpus not found");
+    for mesh in parts {
+        let field = crossfield(&mesh, &CrossfieldOptions::default());
+        assert_eq!(field.euler_characteristic, 2);
+        assert_poincare_hopf(&field);
+        // Cross aligned with the feature edges: every feature edge keeps f = 1.
+        let topo = Topology::new(&mesh);
+        let features = detect_features(&mesh, &topo, 40.0);
+        assert!(features.n_sharp_edges > 0);
+        for (e, &a) in features.is_feature_edge.iter().enumerate() {
+            if a {
+                assert_eq!(field.f_per_edge[e], [1.0, 0.0]);
+            }
         }
+        // Singularities are few: the field is smooth between the features.
+        // (The cylinder's caps are disks: 4 × 1/4 each, nothing on the side.)
+        if mesh.n_faces() == 416 {
+            assert_eq!(
+                field.report.singularity_counts.get("0.25"),
+                Some(&8),
+                "{:?}",
+                field.report.singularity_counts
+            );
+            assert_eq!(field.singularities.len(), 8);
+        }
+        assert!(
+            field.singularities.len() < 100,
+            "{:?}",
+            field.report.singularity_counts
+        );
     }
 }
 

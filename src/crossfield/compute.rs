@@ -36,9 +36,15 @@ fn validate_options(opts: &CrossfieldOptions) -> Result<(), CrossfieldError> {
         return bad("symmetry", format!("{} (must be 4 or 6)", opts.symmetry));
     }
     if !(opts.weak_weight > 0.0 && opts.weak_weight.is_finite()) {
-        return bad("weak_weight", format!("{} (must be positive)", opts.weak_weight));
+        return bad(
+            "weak_weight",
+            format!("{} (must be positive)", opts.weak_weight),
+        );
     }
-    for (name, v) in [("epsilon", opts.epsilon), ("epsilon_start", opts.epsilon_start)] {
+    for (name, v) in [
+        ("epsilon", opts.epsilon),
+        ("epsilon_start", opts.epsilon_start),
+    ] {
         if let Some(v) = v {
             if !(v > 0.0 && v.is_finite()) {
                 return bad(name, format!("{v} (must be positive)"));
@@ -46,12 +52,21 @@ fn validate_options(opts: &CrossfieldOptions) -> Result<(), CrossfieldError> {
         }
     }
     if !(opts.epsilon_per_edge_length > 0.0 && opts.epsilon_per_edge_length.is_finite()) {
-        return bad("epsilon_per_edge_length", format!("{} (must be positive)", opts.epsilon_per_edge_length));
+        return bad(
+            "epsilon_per_edge_length",
+            format!("{} (must be positive)", opts.epsilon_per_edge_length),
+        );
     }
     if !(opts.continuation_factor > 0.0 && opts.continuation_factor < 1.0) {
-        return bad("continuation_factor", format!("{} (must be in (0, 1))", opts.continuation_factor));
+        return bad(
+            "continuation_factor",
+            format!("{} (must be in (0, 1))", opts.continuation_factor),
+        );
     }
-    for (name, v) in [("tolerance", opts.tolerance), ("continuation_tolerance", opts.continuation_tolerance)] {
+    for (name, v) in [
+        ("tolerance", opts.tolerance),
+        ("continuation_tolerance", opts.continuation_tolerance),
+    ] {
         if !(v > 0.0 && v.is_finite()) {
             return bad(name, format!("{v} (must be positive)"));
         }
@@ -113,19 +128,34 @@ pub fn compute_crossfield(
     let weak_edges: Vec<bool> = if strong {
         vec![false; topo.n_edges()]
     } else {
-        aligned_edges.iter().zip(&orphan).map(|(&a, &o)| a && !o).collect()
+        aligned_edges
+            .iter()
+            .zip(&orphan)
+            .map(|(&a, &o)| a && !o)
+            .collect()
     };
-    let constrained: Vec<bool> = aligned_edges.iter().zip(&orphan).map(|(&a, &o)| a && !o).collect();
+    let constrained: Vec<bool> = aligned_edges
+        .iter()
+        .zip(&orphan)
+        .map(|(&a, &o)| a && !o)
+        .collect();
     let sys = NewtonSystem::new(topo, &disc, &fixed)?;
 
-    let diag = mesh.bounding_box().map_or(1.0, |b| b.diagonal()).max(f64::MIN_POSITIVE);
+    let diag = mesh
+        .bounding_box()
+        .map_or(1.0, |b| b.diagonal())
+        .max(f64::MIN_POSITIVE);
     let h = mesh.mean_edge_length();
     let eps = opts.epsilon.unwrap_or(opts.epsilon_per_edge_length * h);
     let eps0 = opts.epsilon_start.unwrap_or(0.25 * diag).max(eps);
     let mut schedule = epsilon_schedule(eps0, eps, opts.continuation_factor);
     let params_for = |e: f64| EnergyParams {
         inv_eps2: 1.0 / (e * e),
-        weak_coef: if strong { 0.0 } else { opts.weak_weight * diag / (e * e) },
+        weak_coef: if strong {
+            0.0
+        } else {
+            opts.weak_weight * diag / (e * e)
+        },
         weak_edges: &weak_edges,
     };
 
@@ -171,8 +201,18 @@ pub fn compute_crossfield(
         let two = curvature.is_some();
         progress.set(0.05);
         let first = progress.sub(0.05, if two { 0.7 } else { 0.95 });
-        run_continuation(&mut solver, &mut f, &schedule, &params_for, opts, &first, &mut report)?;
-        report.candidate_energies.push((report.initial_guess.clone(), report.energy));
+        run_continuation(
+            &mut solver,
+            &mut f,
+            &schedule,
+            &params_for,
+            opts,
+            &first,
+            &mut report,
+        )?;
+        report
+            .candidate_energies
+            .push((report.initial_guess.clone(), report.energy));
         if let Some(mut g) = curvature {
             // Candidate 2: aligned with the principal curvature directions,
             // solved at the final ε only (a continuation from large ε would
@@ -184,8 +224,18 @@ pub fn compute_crossfield(
             }
             let mut alt = CrossfieldReport::default();
             let second = progress.sub(0.7, 0.95);
-            run_continuation(&mut solver, &mut g, &[eps], &params_for, opts, &second, &mut alt)?;
-            report.candidate_energies.push(("principal curvature".into(), alt.energy));
+            run_continuation(
+                &mut solver,
+                &mut g,
+                &[eps],
+                &params_for,
+                opts,
+                &second,
+                &mut alt,
+            )?;
+            report
+                .candidate_energies
+                .push(("principal curvature".into(), alt.energy));
             report.iterations += alt.iterations;
             report.history.extend(alt.history);
             if alt.converged && alt.energy < report.energy {
@@ -208,7 +258,10 @@ pub fn compute_crossfield(
     let (cross_per_face, norm_per_face) = face_crosses(mesh, topo, &disc, &f);
     report.n_singularities = idx.singularities.len();
     for s in &idx.singularities {
-        *report.singularity_counts.entry(format_index(s.index)).or_default() += 1;
+        *report
+            .singularity_counts
+            .entry(format_index(s.index))
+            .or_default() += 1;
     }
     report.index_sum = idx.index_sum;
     report.euler_characteristic = chi;
@@ -239,10 +292,27 @@ fn run_continuation<'p>(
 ) -> Result<(), CrossfieldError> {
     let n_stages = schedule.len();
     for (s, &e) in schedule.iter().enumerate() {
+        if s > 0 {
+            shrink_cores(solver, f, schedule[s - 1] / e);
+        }
         let last = s + 1 == n_stages;
-        let tol = if last { opts.tolerance } else { opts.continuation_tolerance };
-        let stage_progress = progress.sub(s as f64 / n_stages as f64, (s + 1) as f64 / n_stages as f64);
-        let out = solver.minimize(f, &params_for(e), e, tol, opts.max_newton_iterations, !last, &stage_progress, &mut report.history)?;
+        let tol = if last {
+            opts.tolerance
+        } else {
+            opts.continuation_tolerance
+        };
+        let stage_progress =
+            progress.sub(s as f64 / n_stages as f64, (s + 1) as f64 / n_stages as f64);
+        let out = solver.minimize(
+            f,
+            &params_for(e),
+            e,
+            tol,
+            opts.max_newton_iterations,
+            !last,
+            &stage_progress,
+            &mut report.history,
+        )?;
         report.iterations += out.iterations;
         report.final_residual = out.residual;
         report.energy = out.energy;
@@ -250,6 +320,22 @@ fn run_continuation<'p>(
         stage_progress.set(1.0);
     }
     Ok(())
+}
+
+/// Predictor for a smaller ε: a vortex core has the profile `|f| ≈ ρ(r/ε)`
+/// with `ρ(s) ≈ s/√(1+s²)`; dividing ε by `k` maps a modulus `a` to
+/// `ρ(k ρ⁻¹(a)) = k a / √(1 + (k² − 1) a²)` (phase unchanged). This shrinks
+/// the cores and boundary layers to their new width, so the Newton method
+/// starts each stage close to its minimizer.
+fn shrink_cores(solver: &NewtonSolver, f: &mut [C64], k: f64) {
+    for &e in &solver.sys.free_edges {
+        let z = f[e as usize];
+        let a = z.norm();
+        if a > 0.0 && a < 1.0 {
+            let b = k * a / (1.0 + (k * k - 1.0) * a * a).sqrt();
+            f[e as usize] = z * (b / a);
+        }
+    }
 }
 
 /// An index as short text for the report ("0.25", "-0.1667").
@@ -262,13 +348,20 @@ fn format_index(x: f64) -> String {
 /// Per triangle: the unit direction `u` of one branch (angle `arg(F)/N` in
 /// the triangle frame, `F` the centroid value, i.e. the mean of the three
 /// CR values) and `|F|`.
-pub fn face_crosses(mesh: &TriMesh, topo: &Topology, disc: &Discretization, f: &[C64]) -> (Vec<Vec3>, Vec<f64>) {
+pub fn face_crosses(
+    mesh: &TriMesh,
+    topo: &Topology,
+    disc: &Discretization,
+    f: &[C64],
+) -> (Vec<Vec3>, Vec<f64>) {
     let n = disc.symmetry as f64;
     let mut u = Vec::with_capacity(mesh.n_faces());
     let mut norm = Vec::with_capacity(mesh.n_faces());
     for (t, fd) in disc.faces.iter().enumerate() {
         let fe = &topo.face_edges[t];
-        let c = (fd.rot[0] * f[fe[0].idx()] + fd.rot[1] * f[fe[1].idx()] + fd.rot[2] * f[fe[2].idx()]) / 3.0;
+        let c =
+            (fd.rot[0] * f[fe[0].idx()] + fd.rot[1] * f[fe[1].idx()] + fd.rot[2] * f[fe[2].idx()])
+                / 3.0;
         let (r, nrm) = face_frame(mesh, FaceId::new(t));
         let th = c.arg() / n;
         let dir = r * th.cos() + nrm.cross(&r) * th.sin();
@@ -287,13 +380,19 @@ mod tests {
     use std::sync::atomic::AtomicBool;
 
     fn boundary_flags(topo: &Topology) -> Vec<bool> {
-        (0..topo.n_edges()).map(|e| topo.is_boundary_edge(crate::mesh::EdgeId::new(e))).collect()
+        (0..topo.n_edges())
+            .map(|e| topo.is_boundary_edge(crate::mesh::EdgeId::new(e)))
+            .collect()
     }
 
     #[test]
     fn options_parse_with_defaults_and_reject_unknown_fields() {
-        let o: CrossfieldOptions = serde_json::from_str(r#"{"symmetry": 6, "boundary": "weak", "epsilon": 0.1}"#).unwrap();
-        assert_eq!((o.symmetry, o.boundary, o.epsilon), (6, BoundaryCondition::Weak, Some(0.1)));
+        let o: CrossfieldOptions =
+            serde_json::from_str(r#"{"symmetry": 6, "boundary": "weak", "epsilon": 0.1}"#).unwrap();
+        assert_eq!(
+            (o.symmetry, o.boundary, o.epsilon),
+            (6, BoundaryCondition::Weak, Some(0.1))
+        );
         assert_eq!(o.continuation_factor, 0.5);
         assert!(serde_json::from_str::<CrossfieldOptions>(r#"{"symetry": 4}"#).is_err());
         assert!(serde_json::from_str::<CrossfieldOptions>(r#"{"boundary": "soft"}"#).is_err());
@@ -304,11 +403,28 @@ mod tests {
         let mesh = fixtures::disk(3);
         let topo = Topology::new(&mesh);
         let flags = boundary_flags(&topo);
-        let run = |o: &CrossfieldOptions, flags: &[bool]| compute_crossfield(&mesh, &topo, flags, o, &Progress::none());
-        let bad = CrossfieldOptions { symmetry: 5, ..Default::default() };
-        assert!(matches!(run(&bad, &flags), Err(CrossfieldError::InvalidOption { name: "symmetry", .. })));
-        let bad = CrossfieldOptions { continuation_factor: 1.5, ..Default::default() };
-        assert!(matches!(run(&bad, &flags), Err(CrossfieldError::InvalidOption { .. })));
+        let run = |o: &CrossfieldOptions, flags: &[bool]| {
+            compute_crossfield(&mesh, &topo, flags, o, &Progress::none())
+        };
+        let bad = CrossfieldOptions {
+            symmetry: 5,
+            ..Default::default()
+        };
+        assert!(matches!(
+            run(&bad, &flags),
+            Err(CrossfieldError::InvalidOption {
+                name: "symmetry",
+                ..
+            })
+        ));
+        let bad = CrossfieldOptions {
+            continuation_factor: 1.5,
+            ..Default::default()
+        };
+        assert!(matches!(
+            run(&bad, &flags),
+            Err(CrossfieldError::InvalidOption { .. })
+        ));
         assert!(matches!(
             run(&CrossfieldOptions::default(), &flags[1..]),
             Err(CrossfieldError::AlignedEdgesLength { .. })
@@ -316,7 +432,13 @@ mod tests {
         let empty = TriMesh::default();
         let et = Topology::new(&empty);
         assert!(matches!(
-            compute_crossfield(&empty, &et, &[], &CrossfieldOptions::default(), &Progress::none()),
+            compute_crossfield(
+                &empty,
+                &et,
+                &[],
+                &CrossfieldOptions::default(),
+                &Progress::none()
+            ),
             Err(CrossfieldError::EmptyMesh)
         ));
     }
@@ -332,7 +454,13 @@ mod tests {
         let topo = Topology::new(&mesh);
         let cancel = Arc::new(AtomicBool::new(true));
         let p = Progress::new(Arc::new(Nothing), cancel);
-        let r = compute_crossfield(&mesh, &topo, &boundary_flags(&topo), &CrossfieldOptions::default(), &p);
+        let r = compute_crossfield(
+            &mesh,
+            &topo,
+            &boundary_flags(&topo),
+            &CrossfieldOptions::default(),
+            &p,
+        );
         assert!(matches!(r, Err(CrossfieldError::Cancelled(_))));
     }
 
@@ -340,7 +468,14 @@ mod tests {
     fn singularities_json_has_the_documented_shape() {
         let mesh = fixtures::disk(6);
         let topo = Topology::new(&mesh);
-        let field = compute_crossfield(&mesh, &topo, &boundary_flags(&topo), &CrossfieldOptions::default(), &Progress::none()).unwrap();
+        let field = compute_crossfield(
+            &mesh,
+            &topo,
+            &boundary_flags(&topo),
+            &CrossfieldOptions::default(),
+            &Progress::none(),
+        )
+        .unwrap();
         let mut buf = Vec::new();
         crate::crossfield::write_singularities_json(&field, &mut buf).unwrap();
         let v: serde_json::Value = serde_json::from_slice(&buf).unwrap();
@@ -349,9 +484,15 @@ mod tests {
         assert_eq!(v["index_sum"], 1.0);
         let s = v["singularities"].as_array().unwrap();
         assert_eq!(s.len(), field.singularities.len());
-        assert!(s.iter().all(|x| x["position"].as_array().unwrap().len() == 3 && x["vertex"].is_u64()));
+        assert!(
+            s.iter()
+                .all(|x| x["position"].as_array().unwrap().len() == 3 && x["vertex"].is_u64())
+        );
         let report = serde_json::to_value(&field.report).unwrap();
-        assert!(report["history"].as_array().unwrap().len() >= report["iterations"].as_u64().unwrap() as usize);
+        assert!(
+            report["history"].as_array().unwrap().len()
+                >= report["iterations"].as_u64().unwrap() as usize
+        );
     }
 
     #[test]

@@ -85,7 +85,12 @@ fn penalty_moments(u: &[C64; 6]) -> ([f64; 6], f64) {
     let mut qmq = 0.0;
     for m in 0..6 {
         let row = &P2_MASS_OVER_AREA[m];
-        let s = row[0] * q[0] + row[1] * q[1] + row[2] * q[2] + row[3] * q[3] + row[4] * q[4] + row[5] * q[5];
+        let s = row[0] * q[0]
+            + row[1] * q[1]
+            + row[2] * q[2]
+            + row[3] * q[3]
+            + row[4] * q[4]
+            + row[5] * q[5];
         mq[m] = s;
         qmq += q[m] * s;
     }
@@ -115,7 +120,12 @@ pub fn element_energy(fd: &FaceData, f: [C64; 3], inv_eps2: f64) -> f64 {
 }
 
 /// Energy, gradient and Hessian of one triangle (edge-frame unknowns).
-pub fn element_derivatives(fd: &FaceData, f: [C64; 3], inv_eps2: f64, kind: HessianKind) -> ElementResult {
+pub fn element_derivatives(
+    fd: &FaceData,
+    f: [C64; 3],
+    inv_eps2: f64,
+    kind: HessianKind,
+) -> ElementResult {
     let mut out = ElementResult {
         energy: 0.0,
         grad: [0.0; 6],
@@ -264,7 +274,11 @@ pub fn total_energy(disc: &Discretization, topo: &Topology, f: &[C64], p: &Energ
                 .enumerate()
                 .map(|(i, fd)| {
                     let fe = &topo.face_edges[base + i];
-                    element_energy(fd, [f[fe[0].idx()], f[fe[1].idx()], f[fe[2].idx()]], p.inv_eps2)
+                    element_energy(
+                        fd,
+                        [f[fe[0].idx()], f[fe[1].idx()], f[fe[2].idx()]],
+                        p.inv_eps2,
+                    )
                 })
                 .sum::<f64>()
         })
@@ -273,7 +287,10 @@ pub fn total_energy(disc: &Discretization, topo: &Topology, f: &[C64], p: &Energ
     if p.weak_coef > 0.0 {
         for (i, &w) in p.weak_edges.iter().enumerate() {
             if w {
-                e += 0.5 * p.weak_coef * disc.length_per_edge[i] * (f[i] - C64::new(1.0, 0.0)).norm_sqr();
+                e += 0.5
+                    * p.weak_coef
+                    * disc.length_per_edge[i]
+                    * (f[i] - C64::new(1.0, 0.0)).norm_sqr();
             }
         }
     }
@@ -283,8 +300,8 @@ pub fn total_energy(disc: &Discretization, topo: &Topology, f: &[C64], p: &Energ
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::geom::Vec3;
     use crate::fem::crouzeix_raviart::cr_stiffness;
+    use crate::geom::Vec3;
     use rand::rngs::StdRng;
     use rand::{Rng, SeedableRng};
 
@@ -311,7 +328,11 @@ mod tests {
         let mut rng = StdRng::seed_from_u64(7);
         for trial in 0..20 {
             let fd = face(&mut rng);
-            let inv_eps2 = if trial == 0 { 0.0 } else { rng.random_range(0.5..50.0) };
+            let inv_eps2 = if trial == 0 {
+                0.0
+            } else {
+                rng.random_range(0.5..50.0)
+            };
             let x: [f64; 6] = std::array::from_fn(|_| rng.random_range(-1.2..1.2));
             let r = element_derivatives(&fd, unpack(&x), inv_eps2, HessianKind::Exact);
             assert!((r.energy - element_energy(&fd, unpack(&x), inv_eps2)).abs() < 1e-12);
@@ -321,13 +342,22 @@ mod tests {
                 let mut xm = x;
                 xp[i] += h;
                 xm[i] -= h;
-                let fdg = (element_energy(&fd, unpack(&xp), inv_eps2) - element_energy(&fd, unpack(&xm), inv_eps2)) / (2.0 * h);
-                assert!((fdg - r.grad[i]).abs() < 1e-6 * (1.0 + fdg.abs()), "grad {i}: {fdg} vs {}", r.grad[i]);
+                let fdg = (element_energy(&fd, unpack(&xp), inv_eps2)
+                    - element_energy(&fd, unpack(&xm), inv_eps2))
+                    / (2.0 * h);
+                assert!(
+                    (fdg - r.grad[i]).abs() < 1e-6 * (1.0 + fdg.abs()),
+                    "grad {i}: {fdg} vs {}",
+                    r.grad[i]
+                );
                 let gp = element_derivatives(&fd, unpack(&xp), inv_eps2, HessianKind::Exact).grad;
                 let gm = element_derivatives(&fd, unpack(&xm), inv_eps2, HessianKind::Exact).grad;
                 for j in 0..6 {
                     let fdh = (gp[j] - gm[j]) / (2.0 * h);
-                    assert!((fdh - r.hess[j][i]).abs() < 1e-5 * (1.0 + fdh.abs()), "hess {j}{i}");
+                    assert!(
+                        (fdh - r.hess[j][i]).abs() < 1e-5 * (1.0 + fdh.abs()),
+                        "hess {j}{i}"
+                    );
                 }
             }
         }

@@ -18,12 +18,12 @@
 //! minimizer is close to a scaled smoothest field, and the zeros of that
 //! field are where the singularities are born.
 
+use super::CrossfieldError;
 use super::energy::{EnergyParams, HessianKind};
 use super::frames::{C64, Discretization};
 use super::newton::NewtonSolver;
-use super::CrossfieldError;
-use crate::mesh::components::face_components;
 use crate::mesh::Topology;
+use crate::mesh::components::face_components;
 
 /// Maximum inverse iterations for the eigenvector.
 const MAX_INVERSE_ITERATIONS: usize = 50;
@@ -108,10 +108,20 @@ pub fn initial_field(
         let mut y: Vec<f64> = (0..n)
             .map(|i| {
                 let e = sys.free_edges[i / 2] as usize;
-                if edge_constrained_comp(e) { 0.0 } else { hash_unit(i as u64) }
+                if edge_constrained_comp(e) {
+                    0.0
+                } else {
+                    hash_unit(i as u64)
+                }
             })
             .collect();
-        let norm_m = |v: &[f64]| v.iter().zip(&mass).map(|(a, m)| a * a * m).sum::<f64>().sqrt();
+        let norm_m = |v: &[f64]| {
+            v.iter()
+                .zip(&mass)
+                .map(|(a, m)| a * a * m)
+                .sum::<f64>()
+                .sqrt()
+        };
         let mut rq_old = f64::INFINITY;
         let mut rq = f64::INFINITY;
         for _ in 0..MAX_INVERSE_ITERATIONS {
@@ -122,7 +132,13 @@ pub fn initial_field(
             let mut z: Vec<f64> = y.iter().zip(&mass).map(|(a, m)| a * m / nm).collect();
             solver.solve(&mut z)?;
             // Rayleigh quotient estimate of the shifted operator: ‖y‖²_M / ⟨y, z⟩_M-ish.
-            let yz: f64 = y.iter().zip(&z).zip(&mass).map(|((a, b), m)| a * b * m).sum::<f64>() / nm;
+            let yz: f64 = y
+                .iter()
+                .zip(&z)
+                .zip(&mass)
+                .map(|((a, b), m)| a * b * m)
+                .sum::<f64>()
+                / nm;
             rq = if yz != 0.0 { 1.0 / yz } else { f64::INFINITY };
             y = z;
             if (rq - rq_old).abs() <= 1e-8 * rq.abs() {
@@ -164,7 +180,11 @@ pub fn initial_field(
 /// Also returns the anisotropy `Σ_T |z_T| / Σ_T Σ_e |β_e| ℓ_e ∈ [0, 1]`: 0 on
 /// an umbilic surface (sphere, where the directions are discretization
 /// noise), large when the principal directions are well defined.
-pub fn principal_curvature_field(mesh: &crate::mesh::TriMesh, topo: &Topology, disc: &Discretization) -> (Vec<C64>, f64) {
+pub fn principal_curvature_field(
+    mesh: &crate::mesh::TriMesh,
+    topo: &Topology,
+    disc: &Discretization,
+) -> (Vec<C64>, f64) {
     use crate::mesh::{EdgeId, FaceId};
     let n_half = disc.symmetry / 2;
     // Signed dihedral angle per edge (0 on boundary and non-manifold edges).
@@ -213,7 +233,11 @@ pub fn principal_curvature_field(mesh: &crate::mesh::TriMesh, topo: &Topology, d
         .iter()
         .map(|z| {
             let m = z.norm();
-            if m > 1e-12 * max && m > 0.0 { z / m } else { C64::new(1.0, 0.0) }
+            if m > 1e-12 * max && m > 0.0 {
+                z / m
+            } else {
+                C64::new(1.0, 0.0)
+            }
         })
         .collect();
     (field, if sum_b > 0.0 { sum_z / sum_b } else { 0.0 })

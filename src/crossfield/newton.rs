@@ -99,11 +99,17 @@ impl<'a> NewtonSolver<'a> {
     ///
     /// # Errors
     /// [`CrossfieldError::Linalg`] when the matrix is not positive definite.
-    pub fn factor(&mut self, mut values: Vec<f64>, mass: &[f64], mu: f64) -> Result<(), CrossfieldError> {
+    pub fn factor(
+        &mut self,
+        mut values: Vec<f64>,
+        mass: &[f64],
+        mu: f64,
+    ) -> Result<(), CrossfieldError> {
         let diag = self.sys.diagonal(&values);
         let mean = diag.iter().map(|d| d.abs()).sum::<f64>() / diag.len().max(1) as f64;
         let ones = vec![1.0; diag.len()];
-        self.sys.add_to_diagonal(&mut values, &ones, SHIFT * mean.max(f64::MIN_POSITIVE));
+        self.sys
+            .add_to_diagonal(&mut values, &ones, SHIFT * mean.max(f64::MIN_POSITIVE));
         if mu > 0.0 {
             self.sys.add_to_diagonal(&mut values, mass, mu);
         }
@@ -181,7 +187,9 @@ impl<'a> NewtonSolver<'a> {
         };
         for it in 0..=max_iter {
             progress.check()?;
-            let asm = self.sys.assemble(self.topo, self.disc, f, params, HessianKind::Exact);
+            let asm = self
+                .sys
+                .assemble(self.topo, self.disc, f, params, HessianKind::Exact);
             let res = self.residual(&asm.grad, eps);
             out.residual = res;
             out.energy = asm.energy;
@@ -208,14 +216,19 @@ impl<'a> NewtonSolver<'a> {
             // Exact Hessian + μ M, μ raised ×10 until the factorization succeeds.
             let mut factored = false;
             for _ in 0..MAX_SHIFT_RAISES {
-                if self.factor(asm.hess_values.clone(), &mass, mu * inv_eps2).is_ok() {
+                if self
+                    .factor(asm.hess_values.clone(), &mass, mu * inv_eps2)
+                    .is_ok()
+                {
                     factored = true;
                     break;
                 }
                 mu = if mu == 0.0 { MU_FIRST } else { mu * MU_STEP };
             }
             if !factored {
-                let m = self.sys.assemble(self.topo, self.disc, f, params, HessianKind::Modified);
+                let m = self
+                    .sys
+                    .assemble(self.topo, self.disc, f, params, HessianKind::Modified);
                 self.factor(m.hess_values, &mass, 0.0)?;
                 record.hessian = "modified";
             }
@@ -235,7 +248,8 @@ impl<'a> NewtonSolver<'a> {
             let mut accepted = false;
             for _ in 0..MAX_HALVINGS {
                 for (i, &e) in self.sys.free_edges.iter().enumerate() {
-                    trial[e as usize] = f[e as usize] + C64::new(alpha * d[2 * i], alpha * d[2 * i + 1]);
+                    trial[e as usize] =
+                        f[e as usize] + C64::new(alpha * d[2 * i], alpha * d[2 * i + 1]);
                 }
                 let e_trial = total_energy(self.disc, self.topo, &trial, params);
                 if e_trial <= asm.energy + ARMIJO * alpha * slope {

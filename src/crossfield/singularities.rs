@@ -24,9 +24,9 @@
 //! Gauss–Bonnet, `Σ_v k_v + Σ_T t_T = N χ` exactly on a manifold mesh
 //! (Poincaré–Hopf (3.13)); the test suite asserts it.
 
+use super::Singularity;
 use super::energy::to_face_frame;
 use super::frames::{C64, Discretization};
-use super::Singularity;
 use crate::geom::{Vec3, corner_angles};
 use crate::mesh::{EdgeId, FaceId, Topology, TriMesh, VertexId};
 use std::f64::consts::{PI, TAU};
@@ -64,7 +64,12 @@ pub fn linear_zero(g: &[C64; 3]) -> Option<[f64; 3]> {
 }
 
 /// Indices of the field `f` (edge frames) at every vertex.
-pub fn vertex_indices(mesh: &TriMesh, topo: &Topology, disc: &Discretization, f: &[C64]) -> IndexField {
+pub fn vertex_indices(
+    mesh: &TriMesh,
+    topo: &Topology,
+    disc: &Discretization,
+    f: &[C64],
+) -> IndexField {
     let n = disc.symmetry as f64;
     let nv = mesh.n_vertices();
     let mut turning = vec![0.0; nv];
@@ -81,7 +86,10 @@ pub fn vertex_indices(mesh: &TriMesh, topo: &Topology, disc: &Discretization, f:
     let mut face_index: Vec<(usize, i32)> = Vec::new();
     for (t, tri) in mesh.triangles.iter().enumerate() {
         let fe = &topo.face_edges[t];
-        let big_f = to_face_frame(&disc.faces[t], [f[fe[0].idx()], f[fe[1].idx()], f[fe[2].idx()]]);
+        let big_f = to_face_frame(
+            &disc.faces[t],
+            [f[fe[0].idx()], f[fe[1].idx()], f[fe[2].idx()]],
+        );
         let th = corner_angles(
             &mesh.positions[tri[0].idx()],
             &mesh.positions[tri[1].idx()],
@@ -112,7 +120,10 @@ pub fn vertex_indices(mesh: &TriMesh, topo: &Topology, disc: &Discretization, f:
     let n_face_windings = face_index.len();
     for &(t, w) in &face_index {
         let fe = &topo.face_edges[t];
-        let big_f = to_face_frame(&disc.faces[t], [f[fe[0].idx()], f[fe[1].idx()], f[fe[2].idx()]]);
+        let big_f = to_face_frame(
+            &disc.faces[t],
+            [f[fe[0].idx()], f[fe[1].idx()], f[fe[2].idx()]],
+        );
         let corner = linear_zero(&corner_values(&big_f))
             .map(|l| (0..3).max_by(|&a, &b| l[a].total_cmp(&l[b])).unwrap_or(0))
             .unwrap_or(0);
@@ -142,14 +153,23 @@ pub fn vertex_indices(mesh: &TriMesh, topo: &Topology, disc: &Discretization, f:
 
 /// The zero of the field nearest to `v` among the triangles of its star
 /// (inside a triangle, up to round-off); `v`'s position when there is none.
-fn singularity_position(mesh: &TriMesh, topo: &Topology, disc: &Discretization, f: &[C64], v: VertexId) -> Vec3 {
+fn singularity_position(
+    mesh: &TriMesh,
+    topo: &Topology,
+    disc: &Discretization,
+    f: &[C64],
+    v: VertexId,
+) -> Vec3 {
     let pv = mesh.positions[v.idx()];
     let mut best: Option<(f64, Vec3)> = None;
     for &t in topo.vertex_faces(v) {
         let FaceId(ti) = t;
         let ti = ti as usize;
         let fe = &topo.face_edges[ti];
-        let big_f = to_face_frame(&disc.faces[ti], [f[fe[0].idx()], f[fe[1].idx()], f[fe[2].idx()]]);
+        let big_f = to_face_frame(
+            &disc.faces[ti],
+            [f[fe[0].idx()], f[fe[1].idx()], f[fe[2].idx()]],
+        );
         if let Some(l) = linear_zero(&corner_values(&big_f)) {
             if l.iter().all(|&x| x >= -1e-9) {
                 let p: Vec3 = mesh.triangles[ti]

@@ -169,7 +169,12 @@ mod tests {
         for j in 0..3 {
             for k in 0..3 {
                 let exact = grad(j).dot(&grad(k)) * area;
-                assert!((s[j][k] - exact).abs() < 1e-6, "{j}{k}: {} {}", s[j][k], exact);
+                assert!(
+                    (s[j][k] - exact).abs() < 1e-6,
+                    "{j}{k}: {} {}",
+                    s[j][k],
+                    exact
+                );
             }
         }
         assert_eq!(cr_stiffness(&[Vec3::zeros(); 3]), [[0.0; 3]; 3]);
@@ -179,7 +184,9 @@ mod tests {
     fn p2_mass_integrates_quartics_exactly() {
         // ∫ λ^a λ^b λ^c dA = 2A a! b! c! / (a+b+c+2)!
         let fact = |n: usize| (1..=n).product::<usize>() as f64;
-        let moment = |e: [usize; 3]| 2.0 * fact(e[0]) * fact(e[1]) * fact(e[2]) / fact(e[0] + e[1] + e[2] + 2);
+        let moment = |e: [usize; 3]| {
+            2.0 * fact(e[0]) * fact(e[1]) * fact(e[2]) / fact(e[0] + e[1] + e[2] + 2)
+        };
         // Quadratics λ_i λ_j: P2 nodal values, then pᵀ M q vs the exact moment.
         let nodes: Vec<[f64; 3]> = (0..6)
             .map(|m| {

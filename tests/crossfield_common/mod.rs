@@ -24,7 +24,8 @@ pub fn read_stl(path: &Path) -> TriMesh {
                 let mut p = [0.0; 3];
                 for (k, x) in p.iter_mut().enumerate() {
                     let o = base + 12 * c + 4 * k;
-                    *x = f32::from_le_bytes([bytes[o], bytes[o + 1], bytes[o + 2], bytes[o + 3]]) as f64;
+                    *x = f32::from_le_bytes([bytes[o], bytes[o + 1], bytes[o + 2], bytes[o + 3]])
+                        as f64;
                 }
                 corners.push(p);
             }
