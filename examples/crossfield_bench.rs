@@ -129,10 +129,11 @@ fn main() {
         );
         if verbose {
             eprintln!(
-                "eps schedule {:?}, init {}, modified steps {}, candidates {:?} anisotropy {:.3}",
+                "eps schedule {:?}, init {}, modified steps {}, factorizations {}, candidates {:?} anisotropy {:.3}",
                 field.report.epsilon_schedule,
                 field.report.initial_guess,
                 field.report.n_modified_steps,
+                field.report.n_factorizations,
                 field.report.candidate_energies,
                 field.report.curvature_anisotropy
             );

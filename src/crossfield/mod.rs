@@ -5,8 +5,8 @@
 //! `f = exp(i N θ)`, one complex unknown per edge in the edge's own frame
 //! ([`frames`]). The field minimizes the discrete Ginzburg–Landau energy
 //! ([`energy`], thesis (3.15), (3.27)) by a safeguarded Newton method with
-//! continuation in the coherence length ε ([`newton`]), starting from the
-//! smoothest field ([`initial`]). Indices of the result are computed per
+//! continuation in the coherence length ε ([`newton`], [`compute`]), starting
+//! from the smoothest field ([`initial`]). Indices of the result are computed per
 //! vertex with the discrete Levi-Civita connection ([`singularities`]); they
 //! sum to the Euler characteristic (Poincaré–Hopf, (3.13)).
 //!
@@ -75,7 +75,8 @@ pub struct CrossfieldOptions {
     pub tolerance: f64,
     /// Tolerance for the intermediate ε of the continuation. Default 1e-4.
     pub continuation_tolerance: f64,
-    /// Maximum Newton iterations per ε. Default 60.
+    /// Maximum Newton iterations of the final ε (intermediate ε: a third of
+    /// it, at least 10). Default 60.
     pub max_newton_iterations: usize,
 }
 
@@ -176,6 +177,8 @@ pub struct CrossfieldReport {
     pub iterations: usize,
     /// Newton steps that needed a Levenberg–Marquardt shift or the modified Hessian.
     pub n_modified_steps: usize,
+    /// Numeric Cholesky factorizations attempted (failed ones included).
+    pub n_factorizations: usize,
     /// Scaled residual at the end.
     pub final_residual: f64,
     /// Final Ginzburg–Landau energy.

@@ -67,6 +67,8 @@ pub struct NewtonSolver<'a> {
     chol: Option<SupernodalCholesky>,
     /// Number of steps that fell back to the modified Hessian.
     pub n_modified_steps: usize,
+    /// Numeric factorizations attempted (failed ones included).
+    pub n_factorizations: usize,
 }
 
 /// Outcome of one stage.
@@ -91,6 +93,7 @@ impl<'a> NewtonSolver<'a> {
             sys,
             chol: None,
             n_modified_steps: 0,
+            n_factorizations: 0,
         }
     }
 
@@ -105,6 +108,7 @@ impl<'a> NewtonSolver<'a> {
         mass: &[f64],
         mu: f64,
     ) -> Result<(), CrossfieldError> {
+        self.n_factorizations += 1;
         let diag = self.sys.diagonal(&values);
         let mean = diag.iter().map(|d| d.abs()).sum::<f64>() / diag.len().max(1) as f64;
         let ones = vec![1.0; diag.len()];
@@ -156,7 +160,9 @@ impl<'a> NewtonSolver<'a> {
         eps * eps * (s / self.disc.area.max(f64::MIN_POSITIVE)).sqrt()
     }
 
-    /// Minimize the energy for one ε from `f` (updated in place).
+    /// Minimize the energy for one ε from `f` (updated in place), starting
+    /// with the Levenberg–Marquardt parameter `mu_start` (1 right after ε
+    /// decreased, where the shrinking cores make the Hessian indefinite).
     ///
     /// # Errors
     /// [`CrossfieldError::Cancelled`] when `progress` is cancelled, or a
@@ -170,13 +176,14 @@ impl<'a> NewtonSolver<'a> {
         tol: f64,
         max_iter: usize,
         stop_on_stall: bool,
+        mu_start: f64,
         progress: &Progress,
         history: &mut Vec<NewtonRecord>,
     ) -> Result<StageOutcome, CrossfieldError> {
         let mass = self.dof_mass();
         let inv_eps2 = 1.0 / (eps * eps);
         // Levenberg–Marquardt parameter, in units of 1/ε² (0 = pure Newton).
-        let mut mu = 0.0f64;
+        let mut mu = mu_start;
         let mut trial = f.to_vec();
         let mut energies: Vec<f64> = Vec::new();
         let mut out = StageOutcome {
