@@ -181,16 +181,8 @@ pub struct DataArray<'a> {
 
 impl<'a> DataArray<'a> {
     /// A `Float64` array.
-    pub fn f64(
-        name: impl Into<String>,
-        n_components: usize,
-        values: impl Into<Cow<'a, [f64]>>,
-    ) -> Self {
-        Self {
-            name: name.into(),
-            n_components,
-            values: DataValues::Float64(values.into()),
-        }
+    pub fn f64(name: impl Into<String>, n_components: usize, values: impl Into<Cow<'a, [f64]>>) -> Self {
+        Self { name: name.into(), n_components, values: DataValues::Float64(values.into()) }
     }
 
     /// A `Float64` array of 3-vectors (copied).
@@ -201,20 +193,12 @@ impl<'a> DataArray<'a> {
 
     /// An `Int32` scalar array.
     pub fn i32(name: impl Into<String>, values: impl Into<Cow<'a, [i32]>>) -> Self {
-        Self {
-            name: name.into(),
-            n_components: 1,
-            values: DataValues::Int32(values.into()),
-        }
+        Self { name: name.into(), n_components: 1, values: DataValues::Int32(values.into()) }
     }
 
     /// A `UInt8` scalar array (flags).
     pub fn u8(name: impl Into<String>, values: impl Into<Cow<'a, [u8]>>) -> Self {
-        Self {
-            name: name.into(),
-            n_components: 1,
-            values: DataValues::UInt8(values.into()),
-        }
+        Self { name: name.into(), n_components: 1, values: DataValues::UInt8(values.into()) }
     }
 }
 
@@ -235,20 +219,12 @@ pub struct VtuMesh<'a> {
 impl<'a> VtuMesh<'a> {
     /// The triangles of `mesh`, no data.
     pub fn from_surface(mesh: &'a TriMesh) -> Self {
-        Self {
-            points: &mesh.positions,
-            cells: vec![CellBlock::Triangles(&mesh.triangles)],
-            ..Default::default()
-        }
+        Self { points: &mesh.positions, cells: vec![CellBlock::Triangles(&mesh.triangles)], ..Default::default() }
     }
 
     /// The tetrahedra of `mesh`, no data.
     pub fn from_volume(mesh: &'a TetMesh) -> Self {
-        Self {
-            points: &mesh.positions,
-            cells: vec![CellBlock::Tetrahedra(&mesh.tets)],
-            ..Default::default()
-        }
+        Self { points: &mesh.positions, cells: vec![CellBlock::Tetrahedra(&mesh.tets)], ..Default::default() }
     }
 
     /// Total number of cells.
@@ -263,12 +239,7 @@ impl<'a> VtuMesh<'a> {
     pub fn validate(&self) -> Result<(), WriteError> {
         for (i, p) in self.points.iter().enumerate() {
             if !p.iter().all(|c| c.is_finite()) {
-                return Err(WriteError::NonFiniteCoordinate {
-                    what: format!("point {i}"),
-                    x: p.x,
-                    y: p.y,
-                    z: p.z,
-                });
+                return Err(WriteError::NonFiniteCoordinate { what: format!("point {i}"), x: p.x, y: p.y, z: p.z });
             }
         }
         let n = self.points.len();
@@ -284,10 +255,7 @@ impl<'a> VtuMesh<'a> {
             }
             first += block.len();
         }
-        for (arrays, count, what) in [
-            (&self.point_data, n, "point"),
-            (&self.cell_data, self.n_cells(), "cell"),
-        ] {
+        for (arrays, count, what) in [(&self.point_data, n, "point"), (&self.cell_data, self.n_cells(), "cell")] {
             for a in arrays {
                 if a.n_components == 0 {
                     return Err(WriteError::BadComponents {
@@ -317,6 +285,18 @@ pub fn write_vtu(w: impl Write, mesh: &VtuMesh<'_>, opts: &VtuOptions) -> Result
     mesh.validate()?;
     let n_conn: usize = mesh.cells.iter().map(|b| b.indices().len()).sum();
     let wide = mesh.points.len() > i32::MAX as usize || n_conn > i32::MAX as usize;
+    if opts.header_type == VtuHeaderType::UInt32 && opts.encoding != VtuEncoding::Ascii {
+        let sources =
+            [Source::Points(mesh.points), Source::Connectivity(&mesh.cells, wide), Source::Offsets(&mesh.cells, wide)];
+        let data = mesh.point_data.iter().chain(&mesh.cell_data).map(|a| Source::Values(&a.values));
+        if let Some(n) = sources.into_iter().chain(data).map(|s| s.n_bytes()).find(|&n| n > u32::MAX as usize) {
+            return Err(WriteError::TooLarge {
+                what: "VTU array bytes with a UInt32 header",
+                count: n,
+                max: u64::from(u32::MAX),
+            });
+        }
+    }
     let mut arrays: Vec<(Source<'_>, String)> = Vec::new();
     let mut xml = XmlOut::new(w, opts);
     xml.text("<?xml version=\"1.0\"?>\n<VTKFile type=\"UnstructuredGrid\" version=\"1.0\" byte_order=\"LittleEndian\" header_type=\"");
@@ -329,16 +309,10 @@ pub fn write_vtu(w: impl Write, mesh: &VtuMesh<'_>, opts: &VtuOptions) -> Result
         mesh.points.len(),
         mesh.n_cells()
     ));
-    for (tag, data) in [
-        ("PointData", &mesh.point_data),
-        ("CellData", &mesh.cell_data),
-    ] {
+    for (tag, data) in [("PointData", &mesh.point_data), ("CellData", &mesh.cell_data)] {
         xml.text(&format!("<{tag}>\n"));
         for a in data {
-            arrays.push((
-                Source::Values(&a.values),
-                attrs(&a.name, a.values.vtk_name(), a.n_components),
-            ));
+            arrays.push((Source::Values(&a.values), attrs(&a.name, a.values.vtk_name(), a.n_components)));
         }
         xml.arrays(&mut arrays)?;
         xml.text(&format!("</{tag}>\n"));
@@ -348,10 +322,7 @@ pub fn write_vtu(w: impl Write, mesh: &VtuMesh<'_>, opts: &VtuOptions) -> Result
     xml.arrays(&mut arrays)?;
     xml.text("</Points>\n<Cells>\n");
     let int = if wide { "Int64" } else { "Int32" };
-    arrays.push((
-        Source::Connectivity(&mesh.cells, wide),
-        attrs("connectivity", int, 1),
-    ));
+    arrays.push((Source::Connectivity(&mesh.cells, wide), attrs("connectivity", int, 1)));
     arrays.push((Source::Offsets(&mesh.cells, wide), attrs("offsets", int, 1)));
     arrays.push((Source::Types(&mesh.cells), attrs("types", "UInt8", 1)));
     xml.arrays(&mut arrays)?;
@@ -406,9 +377,7 @@ impl Source<'_> {
             Self::Connectivity(c, wide) => {
                 c.iter().map(|b| b.indices().len()).sum::<usize>() * if *wide { 8 } else { 4 }
             }
-            Self::Offsets(c, wide) => {
-                c.iter().map(CellBlock::len).sum::<usize>() * if *wide { 8 } else { 4 }
-            }
+            Self::Offsets(c, wide) => c.iter().map(CellBlock::len).sum::<usize>() * if *wide { 8 } else { 4 },
             Self::Types(c) => c.iter().map(CellBlock::len).sum(),
             Self::Values(v) => match v {
                 DataValues::Float64(x) => 8 * x.len(),
@@ -454,24 +423,12 @@ impl Source<'_> {
                 }
             }
             Self::Values(v) => match v {
-                DataValues::Float64(x) => x
-                    .iter()
-                    .try_for_each(|&x| f(&x.to_le_bytes(), Scalar::F(x)))?,
-                DataValues::Float32(x) => x
-                    .iter()
-                    .try_for_each(|&x| f(&x.to_le_bytes(), Scalar::F(f64::from(x))))?,
-                DataValues::Int32(x) => x
-                    .iter()
-                    .try_for_each(|&x| f(&x.to_le_bytes(), Scalar::I(i64::from(x))))?,
-                DataValues::Int64(x) => x
-                    .iter()
-                    .try_for_each(|&x| f(&x.to_le_bytes(), Scalar::I(x)))?,
-                DataValues::UInt8(x) => x
-                    .iter()
-                    .try_for_each(|&x| f(&[x], Scalar::U(u64::from(x))))?,
-                DataValues::UInt32(x) => x
-                    .iter()
-                    .try_for_each(|&x| f(&x.to_le_bytes(), Scalar::U(u64::from(x))))?,
+                DataValues::Float64(x) => x.iter().try_for_each(|&x| f(&x.to_le_bytes(), Scalar::F(x)))?,
+                DataValues::Float32(x) => x.iter().try_for_each(|&x| f(&x.to_le_bytes(), Scalar::F(f64::from(x))))?,
+                DataValues::Int32(x) => x.iter().try_for_each(|&x| f(&x.to_le_bytes(), Scalar::I(i64::from(x))))?,
+                DataValues::Int64(x) => x.iter().try_for_each(|&x| f(&x.to_le_bytes(), Scalar::I(x)))?,
+                DataValues::UInt8(x) => x.iter().try_for_each(|&x| f(&[x], Scalar::U(u64::from(x))))?,
+                DataValues::UInt32(x) => x.iter().try_for_each(|&x| f(&x.to_le_bytes(), Scalar::U(u64::from(x))))?,
             },
         }
         Ok(())
@@ -485,11 +442,7 @@ impl Source<'_> {
 
 /// An index as Int32 (validated to fit) or Int64.
 fn int<E>(f: &mut impl FnMut(&[u8], Scalar) -> Result<(), E>, x: i64, wide: bool) -> Result<(), E> {
-    if wide {
-        f(&x.to_le_bytes(), Scalar::I(x))
-    } else {
-        f(&(x as i32).to_le_bytes(), Scalar::I(x))
-    }
+    if wide { f(&x.to_le_bytes(), Scalar::I(x)) } else { f(&(x as i32).to_le_bytes(), Scalar::I(x)) }
 }
 
 /// The output with its encoding state.
@@ -521,24 +474,14 @@ impl<'s, W: Write> XmlOut<'s, W> {
     }
 
     fn header_bytes(&self, n: usize) -> Vec<u8> {
-        if self.header64 {
-            (n as u64).to_le_bytes().to_vec()
-        } else {
-            (n as u32).to_le_bytes().to_vec()
-        }
+        if self.header64 { (n as u64).to_le_bytes().to_vec() } else { (n as u32).to_le_bytes().to_vec() }
     }
 
     /// Write the `DataArray` elements of `arrays` (draining it).
     fn arrays(&mut self, arrays: &mut Vec<(Source<'s>, String)>) -> Result<(), WriteError> {
         for (src, attrs) in arrays.drain(..) {
+            // With a UInt32 header, sizes were checked to fit before writing started.
             let n = src.n_bytes();
-            if !self.header64 && n > u32::MAX as usize {
-                return Err(WriteError::TooLarge {
-                    what: "VTU array bytes with a UInt32 header",
-                    count: n,
-                    max: u64::from(u32::MAX),
-                });
-            }
             match self.encoding {
                 VtuEncoding::Ascii => {
                     self.text(&format!("<DataArray {attrs} format=\"ascii\">\n"));
@@ -553,10 +496,7 @@ impl<'s, W: Write> XmlOut<'s, W> {
                     self.text("\n</DataArray>\n");
                 }
                 VtuEncoding::Raw => {
-                    self.text(&format!(
-                        "<DataArray {attrs} format=\"appended\" offset=\"{}\"/>\n",
-                        self.offset
-                    ));
+                    self.text(&format!("<DataArray {attrs} format=\"appended\" offset=\"{}\"/>\n", self.offset));
                     self.offset += n + if self.header64 { 8 } else { 4 };
                     self.pending.push(src);
                 }
@@ -573,18 +513,16 @@ impl<'s, W: Write> XmlOut<'s, W> {
         let mut k = 0usize;
         src.for_each(|_, s| -> std::io::Result<()> {
             match s {
-                Scalar::F(x) if f32s => {
-                    buf.extend_from_slice(zmij::Buffer::new().format(x as f32).as_bytes())
-                }
+                Scalar::F(x) if f32s => buf.extend_from_slice(zmij::Buffer::new().format(x as f32).as_bytes()),
                 Scalar::F(x) => push_f64(buf, x),
                 Scalar::I(x) => push_i64(buf, x),
                 Scalar::U(x) => push_u64(buf, x),
             }
             k += 1;
-            buf.push(if k % 6 == 0 { b'\n' } else { b' ' });
+            buf.push(if k.is_multiple_of(6) { b'\n' } else { b' ' });
             flush_if_full(w, buf, CHUNK)
         })?;
-        if k % 6 != 0 {
+        if !k.is_multiple_of(6) {
             self.buf.push(b'\n');
         }
         Ok(())
@@ -639,12 +577,10 @@ impl<'s, W: Write> XmlOut<'s, W> {
 /// Append the base64 encoding of `bytes` to `buf`.
 fn push_base64(buf: &mut Vec<u8>, bytes: &[u8]) -> std::io::Result<()> {
     let start = buf.len();
-    let n = base64::encoded_len(bytes.len(), true)
-        .ok_or_else(|| std::io::Error::other("base64 length overflows usize"))?;
+    let n =
+        base64::encoded_len(bytes.len(), true).ok_or_else(|| std::io::Error::other("base64 length overflows usize"))?;
     buf.resize(start + n, 0);
-    let written = B64
-        .encode_slice(bytes, &mut buf[start..])
-        .map_err(std::io::Error::other)?;
+    let written = B64.encode_slice(bytes, &mut buf[start..]).map_err(std::io::Error::other)?;
     buf.truncate(start + written);
     Ok(())
 }
@@ -657,6 +593,14 @@ pub fn write_surface_vtu(w: impl Write, mesh: &TriMesh) -> Result<(), WriteError
     write_vtu(w, &VtuMesh::from_surface(mesh), &VtuOptions::default())
 }
 
+/// Write the tetrahedra of `mesh` with default options (raw appended, UInt64 headers).
+///
+/// # Errors
+/// A validation error or [`WriteError::Io`].
+pub fn write_volume_vtu(w: impl Write, mesh: &TetMesh) -> Result<(), WriteError> {
+    write_vtu(w, &VtuMesh::from_volume(mesh), &VtuOptions::default())
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -664,26 +608,14 @@ mod tests {
 
     fn write(mesh: &VtuMesh<'_>, encoding: VtuEncoding, header_type: VtuHeaderType) -> Vec<u8> {
         let mut v = Vec::new();
-        write_vtu(
-            &mut v,
-            mesh,
-            &VtuOptions {
-                encoding,
-                header_type,
-            },
-        )
-        .unwrap();
+        write_vtu(&mut v, mesh, &VtuOptions { encoding, header_type }).unwrap();
         v
     }
 
     fn sample(m: &TriMesh) -> VtuMesh<'_> {
         let mut mesh = VtuMesh::from_surface(m);
-        mesh.point_data
-            .push(DataArray::vectors("normal", &m.positions));
-        mesh.cell_data.push(DataArray::i32(
-            "patch",
-            (0..m.n_faces() as i32).collect::<Vec<_>>(),
-        ));
+        mesh.point_data.push(DataArray::vectors("normal", &m.positions));
+        mesh.cell_data.push(DataArray::i32("patch", (0..m.n_faces() as i32).collect::<Vec<_>>()));
         mesh
     }
 
@@ -698,45 +630,24 @@ mod tests {
     #[test]
     fn ascii_has_counts_offsets_types_and_values() {
         let m = fixtures::square(1);
-        let text = String::from_utf8(write(
-            &sample(&m),
-            VtuEncoding::Ascii,
-            VtuHeaderType::UInt64,
-        ))
-        .unwrap();
+        let text = String::from_utf8(write(&sample(&m), VtuEncoding::Ascii, VtuHeaderType::UInt64)).unwrap();
         assert!(text.contains("NumberOfPoints=\"4\" NumberOfCells=\"2\""));
         assert_eq!(
-            array_text(&text, "connectivity")
-                .split_whitespace()
-                .collect::<Vec<_>>(),
+            array_text(&text, "connectivity").split_whitespace().collect::<Vec<_>>(),
             ["0", "1", "3", "0", "3", "2"]
         );
         assert_eq!(array_text(&text, "offsets"), "3 6");
         assert_eq!(array_text(&text, "types"), "5 5");
         assert_eq!(array_text(&text, "patch"), "0 1");
-        let pts: Vec<f64> = array_text(&text, "Points")
-            .split_whitespace()
-            .map(|s| s.parse().unwrap())
-            .collect();
-        assert_eq!(
-            pts,
-            m.positions
-                .iter()
-                .flat_map(|p| [p.x, p.y, p.z])
-                .collect::<Vec<_>>()
-        );
+        let pts: Vec<f64> = array_text(&text, "Points").split_whitespace().map(|s| s.parse().unwrap()).collect();
+        assert_eq!(pts, m.positions.iter().flat_map(|p| [p.x, p.y, p.z]).collect::<Vec<_>>());
         assert!(text.contains("type=\"Int32\" Name=\"connectivity\""));
     }
 
     #[test]
     fn base64_decodes_to_header_and_bytes() {
         let m = fixtures::square(1);
-        let text = String::from_utf8(write(
-            &sample(&m),
-            VtuEncoding::Base64,
-            VtuHeaderType::UInt32,
-        ))
-        .unwrap();
+        let text = String::from_utf8(write(&sample(&m), VtuEncoding::Base64, VtuHeaderType::UInt32)).unwrap();
         let s = array_text(&text, "types");
         // Header (4 bytes → 8 chars with padding) encoded apart from the data.
         let header = B64.decode(&s[..8]).unwrap();
@@ -744,19 +655,9 @@ mod tests {
         assert_eq!(B64.decode(&s[8..]).unwrap(), [5, 5]);
         let p = array_text(&text, "Points");
         assert_eq!(B64.decode(&p[..8]).unwrap(), 96u32.to_le_bytes());
-        let xyz: Vec<f64> = B64
-            .decode(&p[8..])
-            .unwrap()
-            .chunks_exact(8)
-            .map(|c| f64::from_le_bytes(c.try_into().unwrap()))
-            .collect();
-        assert_eq!(
-            xyz,
-            m.positions
-                .iter()
-                .flat_map(|p| [p.x, p.y, p.z])
-                .collect::<Vec<_>>()
-        );
+        let xyz: Vec<f64> =
+            B64.decode(&p[8..]).unwrap().chunks_exact(8).map(|c| f64::from_le_bytes(c.try_into().unwrap())).collect();
+        assert_eq!(xyz, m.positions.iter().flat_map(|p| [p.x, p.y, p.z]).collect::<Vec<_>>());
     }
 
     #[test]
@@ -764,11 +665,7 @@ mod tests {
         let m = fixtures::square(2);
         let bytes = write(&sample(&m), VtuEncoding::Raw, VtuHeaderType::UInt64);
         let marker = b"<AppendedData encoding=\"raw\">\n_";
-        let start = bytes
-            .windows(marker.len())
-            .position(|w| w == marker)
-            .unwrap()
-            + marker.len();
+        let start = bytes.windows(marker.len()).position(|w| w == marker).unwrap() + marker.len();
         let head = String::from_utf8_lossy(&bytes[..start]).into_owned();
         let offsets: Vec<usize> = head
             .match_indices("offset=\"")
@@ -784,6 +681,26 @@ mod tests {
     }
 
     #[test]
+    fn convenience_writers_use_the_defaults() {
+        let m = fixtures::torus(1.0, 0.3, 6, 4);
+        let mut a = Vec::new();
+        write_surface_vtu(&mut a, &m).unwrap();
+        assert_eq!(a, write(&VtuMesh::from_surface(&m), VtuEncoding::Raw, VtuHeaderType::UInt64));
+        let tets = TetMesh {
+            positions: vec![Vec3::zeros(), Vec3::x(), Vec3::y(), Vec3::z()],
+            tets: vec![[0, 1, 2, 3].map(VertexId)],
+        };
+        let mut v = Vec::new();
+        write_volume_vtu(&mut v, &tets).unwrap();
+        let text = String::from_utf8_lossy(&v);
+        assert!(text.contains("NumberOfPoints=\"4\" NumberOfCells=\"1\""));
+        let ascii =
+            String::from_utf8(write(&VtuMesh::from_volume(&tets), VtuEncoding::Ascii, VtuHeaderType::UInt64)).unwrap();
+        assert_eq!(array_text(&ascii, "types"), "10");
+        assert_eq!(array_text(&ascii, "offsets"), "4");
+    }
+
+    #[test]
     fn validation() {
         let m = fixtures::square(1);
         let mut mesh = sample(&m);
@@ -791,18 +708,10 @@ mod tests {
         let mut v = Vec::new();
         assert!(matches!(
             write_vtu(&mut v, &mesh, &VtuOptions::default()),
-            Err(WriteError::LengthMismatch {
-                expected: 2,
-                got: 1,
-                ..
-            })
+            Err(WriteError::LengthMismatch { expected: 2, got: 1, .. })
         ));
         let bad = [[VertexId(0), VertexId(7)]];
-        let mesh = VtuMesh {
-            points: &m.positions,
-            cells: vec![CellBlock::Lines(&bad)],
-            ..Default::default()
-        };
+        let mesh = VtuMesh { points: &m.positions, cells: vec![CellBlock::Lines(&bad)], ..Default::default() };
         assert!(matches!(
             write_vtu(&mut v, &mesh, &VtuOptions::default()),
             Err(WriteError::IndexOutOfRange { index: 7, .. })

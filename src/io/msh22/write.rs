@@ -113,20 +113,7 @@ pub fn write_volume_msh22(w: impl Write, mesh: &TetMesh) -> Result<(), WriteErro
 
 /// `(dim, entity tag) → first physical tag` for entities that have one.
 fn first_physical_per_entity(model: &MshModel) -> HashMap<(u8, EntityTag), i32> {
-    let mut map = HashMap::new();
-    let lists = model
-        .points
-        .iter()
-        .map(|e| (0u8, e.tag, &e.physical_tags))
-        .chain(model.curves.iter().map(|e| (1, e.tag, &e.physical_tags)))
-        .chain(model.surfaces.iter().map(|e| (2, e.tag, &e.physical_tags)))
-        .chain(model.volumes.iter().map(|e| (3, e.tag, &e.physical_tags)));
-    for (dim, tag, phys) in lists {
-        if let Some(&p) = phys.first() {
-            map.insert((dim, tag), p);
-        }
-    }
-    map
+    model.entity_rows().filter_map(|r| r.physical_tags.first().map(|&p| ((r.dim, r.tag), p))).collect()
 }
 
 /// A data section: name, time, then step, components, count (3 integer tags).

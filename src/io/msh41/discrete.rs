@@ -22,8 +22,8 @@
 //! most one curve.
 
 use super::model::{
-    CurveEntity, CurveParametrization, ElementBlock, ElementType, EntityTag, MshModel, NodeBlock,
-    PointEntity, SurfaceEntity, SurfaceParametrization,
+    CurveEntity, CurveParametrization, ElementBlock, ElementType, EntityTag, MshModel, NodeBlock, PointEntity,
+    SurfaceEntity, SurfaceParametrization,
 };
 use crate::geom::{Vec2, Vec3};
 use crate::io::write_error::WriteError;
@@ -54,12 +54,7 @@ pub struct DiscreteModelBuilder<'m> {
 impl<'m> DiscreteModelBuilder<'m> {
     /// An empty model over `mesh`.
     pub fn new(mesh: &'m TriMesh) -> Self {
-        Self {
-            mesh,
-            corners: Vec::new(),
-            curves: Vec::new(),
-            patches: Vec::new(),
-        }
+        Self { mesh, corners: Vec::new(), curves: Vec::new(), patches: Vec::new() }
     }
 
     /// Add a corner at vertex `v`; returns its point entity tag.
@@ -70,9 +65,7 @@ impl<'m> DiscreteModelBuilder<'m> {
     pub fn add_corner(&mut self, v: VertexId) -> Result<EntityTag, WriteError> {
         self.check_vertex(v, "corner")?;
         if self.corners.contains(&v) {
-            return Err(WriteError::Invalid(format!(
-                "vertex {v} is already a corner"
-            )));
+            return Err(WriteError::Invalid(format!("vertex {v} is already a corner")));
         }
         self.corners.push(v);
         Ok(self.corners.len() as EntityTag)
@@ -89,25 +82,17 @@ impl<'m> DiscreteModelBuilder<'m> {
     pub fn add_curve(&mut self, chain: Vec<VertexId>) -> Result<EntityTag, WriteError> {
         let tag = self.curves.len() as EntityTag + 1;
         if chain.len() < 2 {
-            return Err(WriteError::Invalid(format!(
-                "curve {tag} has {} vertex(es), needs 2",
-                chain.len()
-            )));
+            return Err(WriteError::Invalid(format!("curve {tag} has {} vertex(es), needs 2", chain.len())));
         }
         for &v in &chain {
             self.check_vertex(v, &format!("curve {tag}"))?;
         }
         if let Some(w) = chain.windows(2).find(|w| w[0] == w[1]) {
-            return Err(WriteError::Invalid(format!(
-                "curve {tag} repeats vertex {} consecutively",
-                w[0]
-            )));
+            return Err(WriteError::Invalid(format!("curve {tag} repeats vertex {} consecutively", w[0])));
         }
         for end in [chain[0], chain[chain.len() - 1]] {
             if !self.corners.contains(&end) {
-                return Err(WriteError::Invalid(format!(
-                    "curve {tag} ends at vertex {end}, which is not a corner"
-                )));
+                return Err(WriteError::Invalid(format!("curve {tag} ends at vertex {end}, which is not a corner")));
             }
         }
         self.curves.push(chain);
@@ -138,26 +123,16 @@ impl<'m> DiscreteModelBuilder<'m> {
                 n_points: self.mesh.n_faces(),
             });
         }
-        if let Some(c) = boundary
-            .iter()
-            .find(|c| c.unsigned_abs() as usize > self.curves.len() || **c == 0)
-        {
-            return Err(WriteError::Invalid(format!(
-                "patch {tag} is bounded by curve {c}, which was not added"
-            )));
+        if let Some(c) = boundary.iter().find(|c| c.unsigned_abs() as usize > self.curves.len() || **c == 0) {
+            return Err(WriteError::Invalid(format!("patch {tag} is bounded by curve {c}, which was not added")));
         }
         if let Some(p) = &uv
-            && (p.uv.len() != p.vertices.len()
-                || (!p.curvature.is_empty() && p.curvature.len() != p.vertices.len()))
+            && (p.uv.len() != p.vertices.len() || (!p.curvature.is_empty() && p.curvature.len() != p.vertices.len()))
         {
             return Err(WriteError::LengthMismatch {
                 what: format!("patch {tag} (u, v) map"),
                 expected: p.vertices.len(),
-                got: if p.uv.len() != p.vertices.len() {
-                    p.uv.len()
-                } else {
-                    p.curvature.len()
-                },
+                got: if p.uv.len() != p.vertices.len() { p.uv.len() } else { p.curvature.len() },
             });
         }
         self.patches.push((faces, boundary, uv));
@@ -167,11 +142,13 @@ impl<'m> DiscreteModelBuilder<'m> {
     /// The model: entities, classified nodes, elements and parametrizations.
     ///
     /// # Errors
-    /// [`WriteError::Invalid`] when a face is in two patches, a vertex lies
-    /// inside two curves, or a patch face has a vertex missing from its map;
-    /// then any error of [`MshModel::validate`].
+    /// [`WriteError::Invalid`] when the mesh is invalid ([`TriMesh::validate`]),
+    /// a face is in two patches, a vertex lies inside two curves, or a patch
+    /// face has a vertex missing from its map; then any error of
+    /// [`MshModel::validate`].
     pub fn build(&self) -> Result<MshModel, WriteError> {
         let mesh = self.mesh;
+        mesh.validate().map_err(|e| WriteError::Invalid(format!("mesh: {e}")))?;
         let n_faces = mesh.n_faces() as u64;
         // Classification: (dim, entity tag) per vertex, lowest dimension wins.
         let mut class: Vec<Option<(u8, EntityTag)>> = vec![None; mesh.n_vertices()];
@@ -209,8 +186,7 @@ impl<'m> DiscreteModelBuilder<'m> {
             }
         }
 
-        let mut model = MshModel::default();
-        model.points = self
+        let points = self
             .corners
             .iter()
             .enumerate()
@@ -220,17 +196,12 @@ impl<'m> DiscreteModelBuilder<'m> {
                 physical_tags: vec![],
             })
             .collect();
-        model.curves = self
+        let curves = self
             .curves
             .iter()
             .enumerate()
             .map(|(k, chain)| {
-                let corner = |v: &VertexId| {
-                    self.corners
-                        .iter()
-                        .position(|c| c == v)
-                        .map_or(0, |i| i as EntityTag + 1)
-                };
+                let corner = |v: &VertexId| self.corners.iter().position(|c| c == v).map_or(0, |i| i as EntityTag + 1);
                 CurveEntity {
                     tag: k as EntityTag + 1,
                     bounding_points: vec![corner(&chain[0]), -corner(&chain[chain.len() - 1])],
@@ -238,7 +209,7 @@ impl<'m> DiscreteModelBuilder<'m> {
                 }
             })
             .collect();
-        model.surfaces = self
+        let surfaces = self
             .patches
             .iter()
             .enumerate()
@@ -249,13 +220,8 @@ impl<'m> DiscreteModelBuilder<'m> {
             })
             .collect();
 
-        model.node_blocks = node_blocks(
-            mesh,
-            &class,
-            self.corners.len(),
-            self.curves.len(),
-            self.patches.len(),
-        );
+        let node_blocks = node_blocks(mesh, &class, self.corners.len(), self.curves.len(), self.patches.len());
+        let mut model = MshModel { points, curves, surfaces, node_blocks, ..Default::default() };
 
         let mut next_tag = n_faces + 1;
         let mut take = |n: usize| {
@@ -278,10 +244,7 @@ impl<'m> DiscreteModelBuilder<'m> {
                 entity_tag: k as EntityTag + 1,
                 element_type: ElementType::Line,
                 tags: take(chain.len() - 1),
-                nodes: chain
-                    .windows(2)
-                    .flat_map(|w| [u64::from(w[0].0) + 1, u64::from(w[1].0) + 1])
-                    .collect(),
+                nodes: chain.windows(2).flat_map(|w| [u64::from(w[0].0) + 1, u64::from(w[1].0) + 1]).collect(),
             });
         }
         for (k, (faces, _, _)) in self.patches.iter().enumerate() {
@@ -292,10 +255,7 @@ impl<'m> DiscreteModelBuilder<'m> {
                 entity_tag: k as EntityTag + 1,
                 element_type: ElementType::Triangle,
                 tags: faces.iter().map(|f| u64::from(f.0) + 1).collect(),
-                nodes: faces
-                    .iter()
-                    .flat_map(|f| mesh.triangles[f.idx()].map(|v| u64::from(v.0) + 1))
-                    .collect(),
+                nodes: faces.iter().flat_map(|f| mesh.triangles[f.idx()].map(|v| u64::from(v.0) + 1)).collect(),
             });
         }
 
@@ -311,12 +271,7 @@ impl<'m> DiscreteModelBuilder<'m> {
                 .collect();
             for (k, (faces, _, uv)) in self.patches.iter().enumerate() {
                 if let Some(uv) = uv {
-                    model.surface_parametrizations.push(surface_parametrization(
-                        mesh,
-                        k as EntityTag + 1,
-                        faces,
-                        uv,
-                    )?);
+                    model.surface_parametrizations.push(surface_parametrization(mesh, k as EntityTag + 1, faces, uv)?);
                 }
             }
         }
@@ -345,12 +300,7 @@ fn node_blocks(
     n_curves: usize,
     n_patches: usize,
 ) -> Vec<NodeBlock> {
-    let offsets = [
-        0,
-        n_points,
-        n_points + n_curves,
-        n_points + n_curves + n_patches,
-    ];
+    let offsets = [0, n_points, n_points + n_curves, n_points + n_curves + n_patches];
     let mut blocks: Vec<NodeBlock> = (0..offsets[3])
         .map(|i| {
             let (dim, tag) = if i < offsets[1] {
@@ -360,11 +310,7 @@ fn node_blocks(
             } else {
                 (2, i - offsets[2] + 1)
             };
-            NodeBlock {
-                entity_dim: dim,
-                entity_tag: tag as EntityTag,
-                ..Default::default()
-            }
+            NodeBlock { entity_dim: dim, entity_tag: tag as EntityTag, ..Default::default() }
         })
         .collect();
     for (v, c) in class.iter().enumerate() {
@@ -396,9 +342,7 @@ fn surface_parametrization(
             });
         }
         if local.insert(v, i as u32).is_some() {
-            return Err(WriteError::Invalid(format!(
-                "patch {tag} map lists vertex {v} twice"
-            )));
+            return Err(WriteError::Invalid(format!("patch {tag} map lists vertex {v} twice")));
         }
     }
     let mut sorted = faces.to_vec();
@@ -409,22 +353,16 @@ fn surface_parametrization(
             let t = mesh.triangles[f.idx()];
             let mut out = [0u32; 3];
             for (o, v) in out.iter_mut().zip(t) {
-                *o = *local.get(&v).ok_or_else(|| {
-                    WriteError::Invalid(format!(
-                        "patch {tag}: vertex {v} of face {f} has no (u, v)"
-                    ))
-                })?;
+                *o = *local
+                    .get(&v)
+                    .ok_or_else(|| WriteError::Invalid(format!("patch {tag}: vertex {v} of face {f} has no (u, v)")))?;
             }
             Ok(out)
         })
         .collect::<Result<Vec<_>, WriteError>>()?;
     Ok(SurfaceParametrization {
         surface: tag,
-        positions: uv
-            .vertices
-            .iter()
-            .map(|v| mesh.positions[v.idx()])
-            .collect(),
+        positions: uv.vertices.iter().map(|v| mesh.positions[v.idx()]).collect(),
         uv: uv.uv.clone(),
         curvature: uv.curvature.clone(),
         triangles,
@@ -456,12 +394,7 @@ mod tests {
             vertices: all,
             curvature: vec![],
         };
-        b.add_patch(
-            (0..mesh.n_faces()).map(FaceId::new).collect(),
-            vec![curve],
-            Some(uv),
-        )
-        .unwrap();
+        b.add_patch((0..mesh.n_faces()).map(FaceId::new).collect(), vec![curve], Some(uv)).unwrap();
         let model = b.build().unwrap();
         (mesh, model)
     }
@@ -469,49 +402,22 @@ mod tests {
     #[test]
     fn disk_is_classified_like_gmsh_does() {
         let (mesh, m) = disk_model();
-        assert_eq!(
-            (m.points.len(), m.curves.len(), m.surfaces.len()),
-            (1, 1, 1)
-        );
+        assert_eq!((m.points.len(), m.curves.len(), m.surfaces.len()), (1, 1, 1));
         assert_eq!(m.curves[0].bounding_points, [1, -1]);
         assert_eq!(m.surfaces[0].bounding_curves, [1]);
-        let sizes: Vec<(u8, usize)> = m
-            .node_blocks
-            .iter()
-            .map(|b| (b.entity_dim, b.tags.len()))
-            .collect();
+        let sizes: Vec<(u8, usize)> = m.node_blocks.iter().map(|b| (b.entity_dim, b.tags.len())).collect();
         assert_eq!(sizes, [(0, 1), (1, 17), (2, 1 + 6 + 12)]);
-        let els: Vec<(ElementType, usize)> = m
-            .element_blocks
-            .iter()
-            .map(|b| (b.element_type, b.tags.len()))
-            .collect();
-        assert_eq!(
-            els,
-            [
-                (ElementType::Point, 1),
-                (ElementType::Line, 18),
-                (ElementType::Triangle, mesh.n_faces())
-            ]
-        );
+        let els: Vec<(ElementType, usize)> = m.element_blocks.iter().map(|b| (b.element_type, b.tags.len())).collect();
+        assert_eq!(els, [(ElementType::Point, 1), (ElementType::Line, 18), (ElementType::Triangle, mesh.n_faces())]);
         assert_eq!(m.element_blocks[2].tags[0], 1);
         assert_eq!(m.element_blocks[0].tags[0], mesh.n_faces() as u64 + 1);
         assert_eq!(m.curve_parametrizations[0].points.len(), 19);
-        assert_eq!(
-            m.curve_parametrizations[0].points[0],
-            m.curve_parametrizations[0].points[18]
-        );
+        assert_eq!(m.curve_parametrizations[0].points[0], m.curve_parametrizations[0].points[18]);
         let p = &m.surface_parametrizations[0];
-        assert_eq!(
-            (p.positions.len(), p.triangles.len()),
-            (mesh.n_vertices(), mesh.n_faces())
-        );
+        assert_eq!((p.positions.len(), p.triangles.len()), (mesh.n_vertices(), mesh.n_faces()));
         // Triangles map back to the mesh's faces, in element-block order.
         for (f, t) in p.triangles.iter().enumerate() {
-            assert_eq!(
-                t.map(|i| p.positions[i as usize]),
-                mesh.corners(FaceId::new(f))
-            );
+            assert_eq!(t.map(|i| p.positions[i as usize]), mesh.corners(FaceId::new(f)));
         }
     }
 
@@ -522,28 +428,22 @@ mod tests {
         b.add_corner(VertexId(0)).unwrap();
         assert!(b.add_corner(VertexId(0)).is_err());
         assert!(b.add_corner(VertexId(99)).is_err());
-        assert!(matches!(
-            b.add_curve(vec![VertexId(0), VertexId(1)]),
-            Err(WriteError::Invalid(_))
-        ));
+        assert!(matches!(b.add_curve(vec![VertexId(0), VertexId(1)]), Err(WriteError::Invalid(_))));
         b.add_corner(VertexId(2)).unwrap();
-        b.add_curve(vec![VertexId(0), VertexId(1), VertexId(2)])
-            .unwrap();
+        b.add_curve(vec![VertexId(0), VertexId(1), VertexId(2)]).unwrap();
         assert!(b.add_patch(vec![], vec![1], None).is_err());
         assert!(b.add_patch(vec![FaceId(0)], vec![2], None).is_err());
-        b.add_patch(vec![FaceId(0), FaceId(1)], vec![1], None)
-            .unwrap();
+        b.add_patch(vec![FaceId(0), FaceId(1)], vec![1], None).unwrap();
         b.add_patch(vec![FaceId(1)], vec![], None).unwrap();
-        assert!(
-            matches!(b.build(), Err(WriteError::Invalid(m)) if m.contains("face 1 is in patches 1 and 2"))
-        );
+        assert!(matches!(b.build(), Err(WriteError::Invalid(m)) if m.contains("face 1 is in patches 1 and 2")));
         let mut b = DiscreteModelBuilder::new(&mesh);
-        let uv = PatchUv {
-            vertices: vec![VertexId(0), VertexId(1)],
-            uv: vec![Vec2::zeros(); 2],
-            curvature: vec![],
-        };
+        let uv = PatchUv { vertices: vec![VertexId(0), VertexId(1)], uv: vec![Vec2::zeros(); 2], curvature: vec![] };
         b.add_patch(vec![FaceId(0)], vec![], Some(uv)).unwrap();
         assert!(matches!(b.build(), Err(WriteError::Invalid(m)) if m.contains("has no (u, v)")));
+        let mut broken = fixtures::square(1);
+        broken.triangles[1][2] = VertexId(40);
+        let mut b = DiscreteModelBuilder::new(&broken);
+        b.add_patch(vec![FaceId(0), FaceId(1)], vec![], None).unwrap();
+        assert!(matches!(b.build(), Err(WriteError::Invalid(m)) if m.starts_with("mesh: ")));
     }
 }

@@ -204,21 +204,9 @@ impl DataView {
     /// `first_tag, first_tag + 1, …` (one per `n_components` values), the
     /// numbering of [`MshModel::from_surface`] and [`MshModel::from_volume`]
     /// with `first_tag = 1`.
-    pub fn contiguous(
-        name: impl Into<String>,
-        n_components: usize,
-        values: Vec<f64>,
-        first_tag: u64,
-    ) -> Self {
+    pub fn contiguous(name: impl Into<String>, n_components: usize, values: Vec<f64>, first_tag: u64) -> Self {
         let n = values.len().checked_div(n_components).unwrap_or(0) as u64;
-        Self {
-            name: name.into(),
-            time: 0.0,
-            step: 0,
-            n_components,
-            tags: (first_tag..first_tag + n).collect(),
-            values,
-        }
+        Self { name: name.into(), time: 0.0, step: 0, n_components, tags: (first_tag..first_tag + n).collect(), values }
     }
 }
 
@@ -287,10 +275,7 @@ impl MshModel {
     pub fn from_surface(mesh: &TriMesh) -> Self {
         let n = mesh.n_vertices() as u64;
         Self {
-            surfaces: vec![SurfaceEntity {
-                tag: 1,
-                ..Default::default()
-            }],
+            surfaces: vec![SurfaceEntity { tag: 1, ..Default::default() }],
             node_blocks: vec![NodeBlock {
                 entity_dim: 2,
                 entity_tag: 1,
@@ -303,12 +288,7 @@ impl MshModel {
                 entity_tag: 1,
                 element_type: ElementType::Triangle,
                 tags: (1..=mesh.n_faces() as u64).collect(),
-                nodes: mesh
-                    .triangles
-                    .iter()
-                    .flatten()
-                    .map(|v| u64::from(v.0) + 1)
-                    .collect(),
+                nodes: mesh.triangles.iter().flatten().map(|v| u64::from(v.0) + 1).collect(),
             }],
             ..Default::default()
         }
@@ -319,10 +299,7 @@ impl MshModel {
     pub fn from_volume(mesh: &TetMesh) -> Self {
         let n = mesh.n_vertices() as u64;
         Self {
-            volumes: vec![VolumeEntity {
-                tag: 1,
-                ..Default::default()
-            }],
+            volumes: vec![VolumeEntity { tag: 1, ..Default::default() }],
             node_blocks: vec![NodeBlock {
                 entity_dim: 3,
                 entity_tag: 1,
@@ -335,12 +312,7 @@ impl MshModel {
                 entity_tag: 1,
                 element_type: ElementType::Tetrahedron,
                 tags: (1..=mesh.n_tets() as u64).collect(),
-                nodes: mesh
-                    .tets
-                    .iter()
-                    .flatten()
-                    .map(|v| u64::from(v.0) + 1)
-                    .collect(),
+                nodes: mesh.tets.iter().flatten().map(|v| u64::from(v.0) + 1).collect(),
             }],
             ..Default::default()
         }
@@ -367,6 +339,18 @@ impl MshModel {
         self.index().map(|_| ())
     }
 
+    /// Every entity as `(dim, tag, physical tags, bounding tags)`, points
+    /// first, then curves, surfaces, volumes.
+    pub(crate) fn entity_rows(&self) -> impl Iterator<Item = EntityRow<'_>> {
+        fn row<'a>(dim: u8, tag: EntityTag, physical_tags: &'a [i32], boundary: &'a [EntityTag]) -> EntityRow<'a> {
+            EntityRow { dim, tag, physical_tags, boundary }
+        }
+        (self.points.iter().map(|e| row(0, e.tag, &e.physical_tags, &[])))
+            .chain(self.curves.iter().map(|e| row(1, e.tag, &e.physical_tags, &e.bounding_points)))
+            .chain(self.surfaces.iter().map(|e| row(2, e.tag, &e.physical_tags, &e.bounding_curves)))
+            .chain(self.volumes.iter().map(|e| row(3, e.tag, &e.physical_tags, &e.bounding_surfaces)))
+    }
+
     /// Validate and build the lookups the writers need.
     pub(crate) fn index(&self) -> Result<ModelIndex, WriteError> {
         let entities = self.check_entities()?;
@@ -381,100 +365,40 @@ impl MshModel {
     /// Entity tags per dimension; checks tags, bounding references, physicals, names.
     fn check_entities(&self) -> Result<[HashSet<EntityTag>; 4], WriteError> {
         let mut sets: [HashSet<EntityTag>; 4] = Default::default();
-        let lists: [(&'static str, Vec<(EntityTag, &[i32])>); 4] = [
-            (
-                "point entity",
-                self.points
-                    .iter()
-                    .map(|e| (e.tag, e.physical_tags.as_slice()))
-                    .collect(),
-            ),
-            (
-                "curve entity",
-                self.curves
-                    .iter()
-                    .map(|e| (e.tag, e.physical_tags.as_slice()))
-                    .collect(),
-            ),
-            (
-                "surface entity",
-                self.surfaces
-                    .iter()
-                    .map(|e| (e.tag, e.physical_tags.as_slice()))
-                    .collect(),
-            ),
-            (
-                "volume entity",
-                self.volumes
-                    .iter()
-                    .map(|e| (e.tag, e.physical_tags.as_slice()))
-                    .collect(),
-            ),
-        ];
-        for (dim, (what, list)) in lists.iter().enumerate() {
-            for &(tag, physicals) in list {
-                positive(what, i64::from(tag))?;
-                if !sets[dim].insert(tag) {
-                    return Err(WriteError::DuplicateTag {
-                        what,
-                        tag: tag as u64,
-                    });
-                }
-                for &p in physicals {
-                    positive("physical", i64::from(p))?;
-                }
+        const WHAT: [&str; 4] = ["point entity", "curve entity", "surface entity", "volume entity"];
+        for row in self.entity_rows() {
+            let what = WHAT[usize::from(row.dim)];
+            positive(what, i64::from(row.tag))?;
+            if !sets[usize::from(row.dim)].insert(row.tag) {
+                return Err(WriteError::DuplicateTag { what, tag: row.tag as u64 });
+            }
+            for &p in row.physical_tags {
+                positive("physical", i64::from(p))?;
             }
         }
         for p in &self.points {
             check_finite(&p.position, || format!("point entity {}", p.tag))?;
         }
-        let bounds: [(u8, &'static str, Vec<(EntityTag, &[EntityTag])>); 3] = [
-            (
-                1,
-                "curve",
-                self.curves
-                    .iter()
-                    .map(|e| (e.tag, e.bounding_points.as_slice()))
-                    .collect(),
-            ),
-            (
-                2,
-                "surface",
-                self.surfaces
-                    .iter()
-                    .map(|e| (e.tag, e.bounding_curves.as_slice()))
-                    .collect(),
-            ),
-            (
-                3,
-                "volume",
-                self.volumes
-                    .iter()
-                    .map(|e| (e.tag, e.bounding_surfaces.as_slice()))
-                    .collect(),
-            ),
-        ];
-        for (dim, what, list) in &bounds {
-            for &(tag, boundary) in list {
-                for &b in boundary {
-                    let lower = usize::from(*dim - 1);
-                    if b == 0 || !sets[lower].contains(&b.abs()) {
-                        return Err(WriteError::MissingEntity {
-                            referrer: format!("{what} {tag} boundary"),
-                            dim: dim - 1,
-                            tag: b.abs(),
-                        });
-                    }
+        for row in self.entity_rows() {
+            for &b in row.boundary {
+                let lower = usize::from(row.dim.saturating_sub(1));
+                if b == 0 || !sets[lower].contains(&b.abs()) {
+                    return Err(WriteError::MissingEntity {
+                        referrer: format!(
+                            "{} {} boundary",
+                            ["point", "curve", "surface", "volume"][usize::from(row.dim)],
+                            row.tag
+                        ),
+                        dim: row.dim - 1,
+                        tag: b.abs(),
+                    });
                 }
             }
         }
         for n in &self.physical_names {
             positive("physical", i64::from(n.tag))?;
             if n.dim > 3 {
-                return Err(WriteError::Invalid(format!(
-                    "physical name {:?} has dimension {}",
-                    n.name, n.dim
-                )));
+                return Err(WriteError::Invalid(format!("physical name {:?} has dimension {}", n.name, n.dim)));
             }
             check_name(&n.name)?;
         }
@@ -487,11 +411,7 @@ impl MshModel {
         for (b, block) in self.node_blocks.iter().enumerate() {
             check_entity(entities, block.entity_dim, block.entity_tag, "node block")?;
             let label = || format!("node block ({}, {})", block.entity_dim, block.entity_tag);
-            same_len(
-                label() + " positions",
-                block.tags.len(),
-                block.positions.len(),
-            )?;
+            same_len(label() + " positions", block.tags.len(), block.positions.len())?;
             if let Some(p) = &block.parametric {
                 same_len(
                     label() + " parametric coordinates",
@@ -509,19 +429,10 @@ impl MshModel {
     }
 
     /// Element lookup; checks tags, lengths, entities, dimensions, node references.
-    fn check_elements(
-        &self,
-        entities: &[HashSet<EntityTag>; 4],
-        nodes: &TagLookup,
-    ) -> Result<TagLookup, WriteError> {
+    fn check_elements(&self, entities: &[HashSet<EntityTag>; 4], nodes: &TagLookup) -> Result<TagLookup, WriteError> {
         let mut all = Vec::with_capacity(self.n_elements());
         for (b, block) in self.element_blocks.iter().enumerate() {
-            check_entity(
-                entities,
-                block.entity_dim,
-                block.entity_tag,
-                "element block",
-            )?;
+            check_entity(entities, block.entity_dim, block.entity_tag, "element block")?;
             let ty = block.element_type;
             if ty.dim() != block.entity_dim {
                 return Err(WriteError::DimensionMismatch {
@@ -533,26 +444,15 @@ impl MshModel {
             }
             let k = ty.n_nodes();
             same_len(
-                format!(
-                    "element block ({}, {}) node tags",
-                    block.entity_dim, block.entity_tag
-                ),
+                format!("element block ({}, {}) node tags", block.entity_dim, block.entity_tag),
                 block.tags.len() * k,
                 block.nodes.len(),
             )?;
-            for (i, (&tag, el)) in block
-                .tags
-                .iter()
-                .zip(block.nodes.chunks_exact(k))
-                .enumerate()
-            {
+            for (i, (&tag, el)) in block.tags.iter().zip(block.nodes.chunks_exact(k)).enumerate() {
                 positive_u64("element", tag)?;
                 for &n in el {
                     if nodes.get(n).is_none() {
-                        return Err(WriteError::MissingNode {
-                            element: tag,
-                            node: n,
-                        });
+                        return Err(WriteError::MissingNode { element: tag, node: n });
                     }
                 }
                 all.push((tag, pack(b, i)));
@@ -563,10 +463,7 @@ impl MshModel {
 
     /// Views: names, components, lengths, tags defined and not repeated.
     fn check_views(&self, nodes: &TagLookup, elements: &TagLookup) -> Result<(), WriteError> {
-        for (views, lookup, what) in [
-            (&self.node_data, nodes, "node"),
-            (&self.element_data, elements, "element"),
-        ] {
+        for (views, lookup, what) in [(&self.node_data, nodes, "node"), (&self.element_data, elements, "element")] {
             for view in views {
                 check_name(&view.name)?;
                 if !matches!(view.n_components, 1 | 3 | 9) {
@@ -584,17 +481,10 @@ impl MshModel {
                 let mut seen = vec![false; lookup.len()];
                 for &tag in &view.tags {
                     let Some(slot) = lookup.rank(tag) else {
-                        return Err(WriteError::UnknownDataTag {
-                            view: view.name.clone(),
-                            what,
-                            tag,
-                        });
+                        return Err(WriteError::UnknownDataTag { view: view.name.clone(), what, tag });
                     };
                     if std::mem::replace(&mut seen[slot], true) {
-                        return Err(WriteError::DuplicateTag {
-                            what: "data view",
-                            tag,
-                        });
+                        return Err(WriteError::DuplicateTag { what: "data view", tag });
                     }
                 }
             }
@@ -608,10 +498,7 @@ impl MshModel {
         for p in &self.curve_parametrizations {
             check_entity(entities, 1, p.curve, "curve parametrization")?;
             if !seen.insert((1, p.curve)) {
-                return Err(WriteError::DuplicateTag {
-                    what: "curve parametrization",
-                    tag: p.curve as u64,
-                });
+                return Err(WriteError::DuplicateTag { what: "curve parametrization", tag: p.curve as u64 });
             }
             if p.points.len() < 2 {
                 return Err(WriteError::Invalid(format!(
@@ -621,18 +508,13 @@ impl MshModel {
                 )));
             }
             for (i, x) in p.points.iter().enumerate() {
-                check_finite(x, || {
-                    format!("parametrization of curve {}, point {i}", p.curve)
-                })?;
+                check_finite(x, || format!("parametrization of curve {}, point {i}", p.curve))?;
             }
         }
         for p in &self.surface_parametrizations {
             check_entity(entities, 2, p.surface, "surface parametrization")?;
             if !seen.insert((2, p.surface)) {
-                return Err(WriteError::DuplicateTag {
-                    what: "surface parametrization",
-                    tag: p.surface as u64,
-                });
+                return Err(WriteError::DuplicateTag { what: "surface parametrization", tag: p.surface as u64 });
             }
             let label = |s: &str| format!("parametrization of surface {} {s}", p.surface);
             same_len(label("(u, v)"), p.positions.len(), p.uv.len())?;
@@ -663,17 +545,9 @@ impl MshModel {
             }
             // Without the polyline of each bounding curve Gmsh cannot mesh the
             // boundary after `mesh.clear()`, and then silently skips the surface.
-            let boundary = self
-                .surfaces
-                .iter()
-                .find(|e| e.tag == p.surface)
-                .map_or(&[][..], |e| &e.bounding_curves[..]);
-            if let Some(c) = boundary.iter().find(|c| {
-                !self
-                    .curve_parametrizations
-                    .iter()
-                    .any(|q| q.curve == c.abs())
-            }) {
+            let boundary =
+                self.surfaces.iter().find(|e| e.tag == p.surface).map_or(&[][..], |e| &e.bounding_curves[..]);
+            if let Some(c) = boundary.iter().find(|c| !self.curve_parametrizations.iter().any(|q| q.curve == c.abs())) {
                 return Err(WriteError::Invalid(format!(
                     "surface {} has a parametrization but its boundary curve {} has none (Gmsh could not remesh it)",
                     p.surface,
@@ -700,80 +574,58 @@ impl MshModel {
     /// boxes of its bounding entities.
     fn entity_bounding_boxes(&self, nodes: &TagLookup) -> HashMap<(u8, EntityTag), BoundingBox> {
         let mut boxes: HashMap<(u8, EntityTag), BoundingBox> = HashMap::new();
-        let grow = |boxes: &mut HashMap<(u8, EntityTag), BoundingBox>, key, p: &Vec3| {
-            boxes
-                .entry(key)
-                .and_modify(|b: &mut BoundingBox| {
-                    b.min = b.min.inf(p);
-                    b.max = b.max.sup(p);
-                })
-                .or_insert(BoundingBox { min: *p, max: *p });
+        // Boxes are accumulated per block, then merged once per block.
+        let merge = |boxes: &mut HashMap<(u8, EntityTag), BoundingBox>, key, b: Option<BoundingBox>| {
+            if let Some(b) = b {
+                boxes
+                    .entry(key)
+                    .and_modify(|a: &mut BoundingBox| {
+                        a.min = a.min.inf(&b.min);
+                        a.max = a.max.sup(&b.max);
+                    })
+                    .or_insert(b);
+            }
         };
         for p in &self.points {
-            grow(&mut boxes, (0, p.tag), &p.position);
+            merge(&mut boxes, (0, p.tag), BoundingBox::of_points([&p.position]));
         }
         for b in &self.node_blocks {
-            for p in &b.positions {
-                grow(&mut boxes, (b.entity_dim, b.entity_tag), p);
-            }
+            merge(&mut boxes, (b.entity_dim, b.entity_tag), BoundingBox::of_points(&b.positions));
         }
         for b in &self.element_blocks {
-            for &n in &b.nodes {
-                if let Some(slot) = nodes.get(n) {
-                    let (blk, i) = unpack(slot);
-                    grow(
-                        &mut boxes,
-                        (b.entity_dim, b.entity_tag),
-                        &self.node_blocks[blk].positions[i],
-                    );
-                }
-            }
+            let points = b.nodes.iter().filter_map(|&n| nodes.get(n)).map(|slot| {
+                let (blk, i) = unpack(slot);
+                &self.node_blocks[blk].positions[i]
+            });
+            merge(&mut boxes, (b.entity_dim, b.entity_tag), BoundingBox::of_points(points));
         }
         for p in &self.curve_parametrizations {
-            for x in &p.points {
-                grow(&mut boxes, (1, p.curve), x);
-            }
+            merge(&mut boxes, (1, p.curve), BoundingBox::of_points(&p.points));
         }
         for p in &self.surface_parametrizations {
-            for x in &p.positions {
-                grow(&mut boxes, (2, p.surface), x);
-            }
+            merge(&mut boxes, (2, p.surface), BoundingBox::of_points(&p.positions));
         }
-        let children: [(u8, Vec<(EntityTag, &[EntityTag])>); 3] = [
-            (
-                1,
-                self.curves
-                    .iter()
-                    .map(|e| (e.tag, e.bounding_points.as_slice()))
-                    .collect(),
-            ),
-            (
-                2,
-                self.surfaces
-                    .iter()
-                    .map(|e| (e.tag, e.bounding_curves.as_slice()))
-                    .collect(),
-            ),
-            (
-                3,
-                self.volumes
-                    .iter()
-                    .map(|e| (e.tag, e.bounding_surfaces.as_slice()))
-                    .collect(),
-            ),
-        ];
-        for (dim, list) in &children {
-            for &(tag, boundary) in list {
-                for &c in boundary {
-                    if let Some(cb) = boxes.get(&(dim - 1, c.abs())).copied() {
-                        grow(&mut boxes, (*dim, tag), &cb.min);
-                        grow(&mut boxes, (*dim, tag), &cb.max);
-                    }
-                }
+        // Rows come in increasing dimension, so children are complete first.
+        for row in self.entity_rows() {
+            for &c in row.boundary {
+                let child = boxes.get(&(row.dim - 1, c.abs())).copied();
+                merge(&mut boxes, (row.dim, row.tag), child);
             }
         }
         boxes
     }
+}
+
+/// One entity seen uniformly (see [`MshModel::entity_rows`]).
+pub(crate) struct EntityRow<'a> {
+    /// Dimension.
+    pub(crate) dim: u8,
+    /// Tag.
+    pub(crate) tag: EntityTag,
+    /// Physical tags.
+    pub(crate) physical_tags: &'a [i32],
+    /// Signed bounding entity tags (empty for points).
+    pub(crate) boundary: &'a [EntityTag],
 }
 
 /// What validation learned, reused while writing.
@@ -801,7 +653,7 @@ impl TagLookup {
             return Err(WriteError::DuplicateTag { what, tag: w[0].0 });
         }
         let max = all.last().map_or(0, |&(t, _)| t);
-        let dense = if all.len() <= u32::MAX as usize - 1 && max <= 4 * all.len() as u64 + 1024 {
+        let dense = if all.len() < u32::MAX as usize && max <= 4 * all.len() as u64 + 1024 {
             let mut d = vec![0u32; max as usize + 1];
             for (r, &(t, _)) in all.iter().enumerate() {
                 d[t as usize] = r as u32 + 1;
@@ -858,50 +710,22 @@ pub(crate) fn unpack(slot: u64) -> (usize, usize) {
 }
 
 fn positive(what: &'static str, tag: i64) -> Result<(), WriteError> {
-    if tag > 0 {
-        Ok(())
-    } else {
-        Err(WriteError::NonPositiveTag { what, tag })
-    }
+    if tag > 0 { Ok(()) } else { Err(WriteError::NonPositiveTag { what, tag }) }
 }
 
 fn positive_u64(what: &'static str, tag: u64) -> Result<(), WriteError> {
-    if tag > 0 && tag <= i64::MAX as u64 {
-        Ok(())
-    } else {
-        Err(WriteError::NonPositiveTag {
-            what,
-            tag: tag as i64,
-        })
-    }
+    if tag > 0 && tag <= i64::MAX as u64 { Ok(()) } else { Err(WriteError::NonPositiveTag { what, tag: tag as i64 }) }
 }
 
 fn same_len(what: String, expected: usize, got: usize) -> Result<(), WriteError> {
-    if expected == got {
-        Ok(())
-    } else {
-        Err(WriteError::LengthMismatch {
-            what,
-            expected,
-            got,
-        })
-    }
+    if expected == got { Ok(()) } else { Err(WriteError::LengthMismatch { what, expected, got }) }
 }
 
-fn check_entity(
-    entities: &[HashSet<EntityTag>; 4],
-    dim: u8,
-    tag: EntityTag,
-    referrer: &str,
-) -> Result<(), WriteError> {
+fn check_entity(entities: &[HashSet<EntityTag>; 4], dim: u8, tag: EntityTag, referrer: &str) -> Result<(), WriteError> {
     if dim <= 3 && entities[usize::from(dim)].contains(&tag) {
         Ok(())
     } else {
-        Err(WriteError::MissingEntity {
-            referrer: referrer.to_string(),
-            dim,
-            tag,
-        })
+        Err(WriteError::MissingEntity { referrer: referrer.to_string(), dim, tag })
     }
 }
 
@@ -909,24 +733,13 @@ fn check_finite(p: &Vec3, what: impl FnOnce() -> String) -> Result<(), WriteErro
     if p.iter().all(|c| c.is_finite()) {
         Ok(())
     } else {
-        Err(WriteError::NonFiniteCoordinate {
-            what: what(),
-            x: p.x,
-            y: p.y,
-            z: p.z,
-        })
+        Err(WriteError::NonFiniteCoordinate { what: what(), x: p.x, y: p.y, z: p.z })
     }
 }
 
 /// Names are written between double quotes on one line.
 pub(crate) fn check_name(name: &str) -> Result<(), WriteError> {
-    if name.contains(['"', '\n', '\r']) {
-        Err(WriteError::BadName {
-            name: name.to_string(),
-        })
-    } else {
-        Ok(())
-    }
+    if name.contains(['"', '\n', '\r']) { Err(WriteError::BadName { name: name.to_string() }) } else { Ok(()) }
 }
 
 #[cfg(test)]
@@ -941,10 +754,7 @@ mod tests {
         assert_eq!((m.n_nodes(), m.n_elements()), (42, 80));
         let idx = m.index().unwrap();
         let b = idx.bboxes[&(2, 1)];
-        assert!(
-            (b.max - Vec3::repeat(1.0)).norm() < 1e-12
-                && (b.min + Vec3::repeat(1.0)).norm() < 1e-12
-        );
+        assert!((b.max - Vec3::repeat(1.0)).norm() < 1e-12 && (b.min + Vec3::repeat(1.0)).norm() < 1e-12);
     }
 
     #[test]
@@ -952,92 +762,37 @@ mod tests {
         let base = MshModel::from_surface(&fixtures::square(2));
         let mut m = base.clone();
         m.element_blocks[0].nodes[4] = 99;
-        assert!(matches!(
-            m.validate(),
-            Err(WriteError::MissingNode {
-                element: 2,
-                node: 99
-            })
-        ));
+        assert!(matches!(m.validate(), Err(WriteError::MissingNode { element: 2, node: 99 })));
         let mut m = base.clone();
         m.node_blocks[0].tags[3] = 1;
-        assert!(matches!(
-            m.validate(),
-            Err(WriteError::DuplicateTag {
-                what: "node",
-                tag: 1
-            })
-        ));
+        assert!(matches!(m.validate(), Err(WriteError::DuplicateTag { what: "node", tag: 1 })));
         let mut m = base.clone();
         m.element_blocks[0].entity_tag = 7;
-        assert!(matches!(
-            m.validate(),
-            Err(WriteError::MissingEntity { dim: 2, tag: 7, .. })
-        ));
+        assert!(matches!(m.validate(), Err(WriteError::MissingEntity { dim: 2, tag: 7, .. })));
         let mut m = base.clone();
         m.element_blocks[0].entity_dim = 1;
-        m.curves.push(CurveEntity {
-            tag: 1,
-            ..Default::default()
-        });
-        assert!(matches!(
-            m.validate(),
-            Err(WriteError::DimensionMismatch {
-                element_dim: 2,
-                entity_dim: 1,
-                ..
-            })
-        ));
+        m.curves.push(CurveEntity { tag: 1, ..Default::default() });
+        assert!(matches!(m.validate(), Err(WriteError::DimensionMismatch { element_dim: 2, entity_dim: 1, .. })));
         let mut m = base.clone();
         m.surfaces[0].bounding_curves = vec![-4];
-        assert!(matches!(
-            m.validate(),
-            Err(WriteError::MissingEntity { dim: 1, tag: 4, .. })
-        ));
+        assert!(matches!(m.validate(), Err(WriteError::MissingEntity { dim: 1, tag: 4, .. })));
         let mut m = base.clone();
-        m.node_data
-            .push(DataView::contiguous("f", 1, vec![0.0; 9], 1));
+        m.node_data.push(DataView::contiguous("f", 1, vec![0.0; 9], 1));
         m.validate().unwrap();
         m.node_data[0].values.pop();
-        assert!(matches!(
-            m.validate(),
-            Err(WriteError::LengthMismatch {
-                expected: 9,
-                got: 8,
-                ..
-            })
-        ));
+        assert!(matches!(m.validate(), Err(WriteError::LengthMismatch { expected: 9, got: 8, .. })));
         let mut m = base.clone();
-        m.element_data
-            .push(DataView::contiguous("g", 1, vec![0.0; 9], 1));
-        assert!(matches!(
-            m.validate(),
-            Err(WriteError::UnknownDataTag {
-                tag: 9,
-                what: "element",
-                ..
-            })
-        ));
+        m.element_data.push(DataView::contiguous("g", 1, vec![0.0; 9], 1));
+        assert!(matches!(m.validate(), Err(WriteError::UnknownDataTag { tag: 9, what: "element", .. })));
         let mut m = base.clone();
-        m.element_data
-            .push(DataView::contiguous("g", 2, vec![0.0; 8], 1));
-        assert!(matches!(
-            m.validate(),
-            Err(WriteError::BadComponents {
-                n_components: 2,
-                ..
-            })
-        ));
+        m.element_data.push(DataView::contiguous("g", 2, vec![0.0; 8], 1));
+        assert!(matches!(m.validate(), Err(WriteError::BadComponents { n_components: 2, .. })));
         let mut m = base.clone();
-        m.element_data
-            .push(DataView::contiguous("a\"b", 1, vec![0.0; 8], 1));
+        m.element_data.push(DataView::contiguous("a\"b", 1, vec![0.0; 8], 1));
         assert!(matches!(m.validate(), Err(WriteError::BadName { .. })));
         let mut m = base.clone();
         m.node_blocks[0].positions[2].x = f64::NAN;
-        assert!(matches!(
-            m.validate(),
-            Err(WriteError::NonFiniteCoordinate { .. })
-        ));
+        assert!(matches!(m.validate(), Err(WriteError::NonFiniteCoordinate { .. })));
         let mut m = base.clone();
         m.surface_parametrizations.push(SurfaceParametrization {
             surface: 1,
@@ -1046,19 +801,9 @@ mod tests {
             curvature: vec![],
             triangles: vec![[0, 1, 3]],
         });
-        assert!(matches!(
-            m.validate(),
-            Err(WriteError::IndexOutOfRange {
-                index: 3,
-                n_points: 3,
-                ..
-            })
-        ));
+        assert!(matches!(m.validate(), Err(WriteError::IndexOutOfRange { index: 3, n_points: 3, .. })));
         let mut m = base.clone();
-        m.curves.push(CurveEntity {
-            tag: 4,
-            ..Default::default()
-        });
+        m.curves.push(CurveEntity { tag: 4, ..Default::default() });
         m.surfaces[0].bounding_curves = vec![4];
         m.surface_parametrizations.push(SurfaceParametrization {
             surface: 1,
@@ -1067,23 +812,12 @@ mod tests {
             curvature: vec![],
             triangles: vec![[0, 1, 2]],
         });
-        assert!(
-            matches!(m.validate(), Err(WriteError::Invalid(s)) if s.contains("boundary curve 4 has none"))
-        );
-        m.curve_parametrizations.push(CurveParametrization {
-            curve: 4,
-            points: vec![Vec3::zeros(), Vec3::x()],
-        });
+        assert!(matches!(m.validate(), Err(WriteError::Invalid(s)) if s.contains("boundary curve 4 has none")));
+        m.curve_parametrizations.push(CurveParametrization { curve: 4, points: vec![Vec3::zeros(), Vec3::x()] });
         m.validate().unwrap();
         let mut m = base;
         m.element_blocks[0].tags[0] = 0;
-        assert!(matches!(
-            m.validate(),
-            Err(WriteError::NonPositiveTag {
-                what: "element",
-                tag: 0
-            })
-        ));
+        assert!(matches!(m.validate(), Err(WriteError::NonPositiveTag { what: "element", tag: 0 })));
     }
 
     #[test]
@@ -1095,9 +829,6 @@ mod tests {
         assert_eq!(l.get(4), None);
         assert_eq!(l.range(), (3, 1 << 50));
         let d = TagLookup::new(vec![(2, 1), (1, 0)], "node").unwrap();
-        assert_eq!(
-            (d.rank(1), d.rank(2), d.rank(3), d.rank(0)),
-            (Some(0), Some(1), None, None)
-        );
+        assert_eq!((d.rank(1), d.rank(2), d.rank(3), d.rank(0)), (Some(0), Some(1), None, None));
     }
 }

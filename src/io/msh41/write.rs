@@ -41,12 +41,24 @@ pub struct Msh41Options {
 /// A validation error (nothing written) or [`WriteError::Io`].
 pub fn write_msh41(w: impl Write, model: &MshModel, opts: &Msh41Options) -> Result<(), WriteError> {
     let index = model.index()?;
+    if opts.binary {
+        // Gmsh and meshio read the entry tag of a binary data section as an `int`.
+        let too_big = model
+            .node_data
+            .iter()
+            .chain(&model.element_data)
+            .flat_map(|v| v.tags.iter())
+            .find(|&&t| t > i32::MAX as u64);
+        if let Some(&tag) = too_big {
+            return Err(WriteError::TooLarge {
+                what: "tag in a binary data section",
+                count: tag as usize,
+                max: i32::MAX as u64,
+            });
+        }
+    }
     let mut out = Out::new(w, opts.binary);
-    out.text(if opts.binary {
-        "$MeshFormat\n4.1 1 8\n"
-    } else {
-        "$MeshFormat\n4.1 0 8\n"
-    });
+    out.text(if opts.binary { "$MeshFormat\n4.1 1 8\n" } else { "$MeshFormat\n4.1 0 8\n" });
     if opts.binary {
         out.buf.extend_from_slice(&1i32.to_le_bytes());
         out.text("\n");
@@ -92,11 +104,7 @@ struct Out<W: Write> {
 
 impl<W: Write> Out<W> {
     fn new(w: W, binary: bool) -> Self {
-        Self {
-            w,
-            buf: Vec::with_capacity(CHUNK + 4096),
-            binary,
-        }
+        Self { w, buf: Vec::with_capacity(CHUNK + 4096), binary }
     }
 
     /// Raw text, in both modes (section markers, data headers).
@@ -187,18 +195,9 @@ fn write_physical_names<W: Write>(out: &mut Out<W>, model: &MshModel) -> Result<
 
 /// `$Entities`: points `tag x y z nPhys phys…`; curves, surfaces, volumes
 /// `tag bbox(6) nPhys phys… nBound ±bound…`.
-fn write_entities<W: Write>(
-    out: &mut Out<W>,
-    model: &MshModel,
-    index: &ModelIndex,
-) -> Result<(), WriteError> {
+fn write_entities<W: Write>(out: &mut Out<W>, model: &MshModel, index: &ModelIndex) -> Result<(), WriteError> {
     out.text("$Entities\n");
-    for n in [
-        model.points.len(),
-        model.curves.len(),
-        model.surfaces.len(),
-        model.volumes.len(),
-    ] {
+    for n in [model.points.len(), model.curves.len(), model.surfaces.len(), model.volumes.len()] {
         out.size(n as u64);
     }
     out.line()?;
@@ -210,33 +209,14 @@ fn write_entities<W: Write>(
         tag_list_size(out, &p.physical_tags);
         out.line()?;
     }
-    let higher = model
-        .curves
-        .iter()
-        .map(|e| (1u8, e.tag, &e.physical_tags, &e.bounding_points))
-        .chain(
-            model
-                .surfaces
-                .iter()
-                .map(|e| (2, e.tag, &e.physical_tags, &e.bounding_curves)),
-        )
-        .chain(
-            model
-                .volumes
-                .iter()
-                .map(|e| (3, e.tag, &e.physical_tags, &e.bounding_surfaces)),
-        );
-    for (dim, tag, physicals, boundary) in higher {
-        out.int(tag);
-        let bb = index
-            .bboxes
-            .get(&(dim, tag))
-            .map_or([0.0; 6], |b| b.to_array());
+    for row in model.entity_rows().filter(|r| r.dim > 0) {
+        out.int(row.tag);
+        let bb = index.bboxes.get(&(row.dim, row.tag)).map_or([0.0; 6], |b| b.to_array());
         for c in bb {
             out.real(c);
         }
-        tag_list_size(out, physicals);
-        tag_list_size(out, boundary);
+        tag_list_size(out, row.physical_tags);
+        tag_list_size(out, row.boundary);
         out.line()?;
     }
     out.end("Entities")?;
@@ -263,11 +243,7 @@ fn sorting_order(tags: &[u64]) -> Option<Vec<usize>> {
 
 /// `$Nodes`: header `nBlocks nNodes minTag maxTag`, per block
 /// `dim tag parametric n`, the tags, then `x y z [u [v [w]]]` per node.
-fn write_nodes<W: Write>(
-    out: &mut Out<W>,
-    model: &MshModel,
-    index: &ModelIndex,
-) -> Result<(), WriteError> {
+fn write_nodes<W: Write>(out: &mut Out<W>, model: &MshModel, index: &ModelIndex) -> Result<(), WriteError> {
     out.text("$Nodes\n");
     let (lo, hi) = index.nodes.range();
     out.size(model.node_blocks.len() as u64);
@@ -315,20 +291,8 @@ fn write_node_block<W: Write>(out: &mut Out<W>, block: &NodeBlock) -> Result<(),
 /// `dim tag type n`, then `tag node…` per element.
 fn write_elements<W: Write>(out: &mut Out<W>, model: &MshModel) -> Result<(), WriteError> {
     out.text("$Elements\n");
-    let lo = model
-        .element_blocks
-        .iter()
-        .flat_map(|b| b.tags.iter())
-        .min()
-        .copied()
-        .unwrap_or(0);
-    let hi = model
-        .element_blocks
-        .iter()
-        .flat_map(|b| b.tags.iter())
-        .max()
-        .copied()
-        .unwrap_or(0);
+    let lo = model.element_blocks.iter().flat_map(|b| b.tags.iter()).min().copied().unwrap_or(0);
+    let hi = model.element_blocks.iter().flat_map(|b| b.tags.iter()).max().copied().unwrap_or(0);
     out.size(model.element_blocks.len() as u64);
     out.size(model.n_elements() as u64);
     out.size(lo);
@@ -417,30 +381,16 @@ fn write_parametrizations<W: Write>(out: &mut Out<W>, model: &MshModel) -> Resul
 /// `$NodeData` / `$ElementData`: one string tag (the quoted name), one real
 /// tag (time), four integer tags (step, components, count, partition 0),
 /// then `tag value…` per entry.
-fn write_view<W: Write>(
-    out: &mut Out<W>,
-    section: &str,
-    view: &DataView,
-) -> Result<(), WriteError> {
+fn write_view<W: Write>(out: &mut Out<W>, section: &str, view: &DataView) -> Result<(), WriteError> {
     let mut header = format!("${section}\n1\n\"{}\"\n1\n", view.name);
     push_f64_string(&mut header, view.time);
-    header.push_str(&format!(
-        "\n4\n{}\n{}\n{}\n0\n",
-        view.step,
-        view.n_components,
-        view.tags.len()
-    ));
+    header.push_str(&format!("\n4\n{}\n{}\n{}\n0\n", view.step, view.n_components, view.tags.len()));
     out.text(&header);
     let nc = view.n_components;
     for (i, &tag) in view.tags.iter().enumerate() {
         if out.binary {
-            // Gmsh and meshio read the entry tag of a binary data section as an `int`.
-            let t = i32::try_from(tag).map_err(|_| WriteError::TooLarge {
-                what: "tag in a binary data section",
-                count: tag as usize,
-                max: i32::MAX as u64,
-            })?;
-            out.int(t);
+            // Checked against i32::MAX before writing started.
+            out.int(tag as i32);
         } else {
             out.size(tag);
         }
@@ -464,9 +414,7 @@ fn push_f64_string(s: &mut String, x: f64) {
 mod tests {
     use super::*;
     use crate::geom::{Vec2, Vec3};
-    use crate::io::msh41::model::{
-        CurveEntity, CurveParametrization, PointEntity, SurfaceParametrization,
-    };
+    use crate::io::msh41::model::{CurveEntity, CurveParametrization, PointEntity, SurfaceParametrization};
     use crate::mesh::fixtures;
 
     fn ascii(model: &MshModel) -> String {
@@ -491,26 +439,14 @@ mod tests {
         assert_eq!(section(&text, "MeshFormat"), ["4.1 0 8"]);
         let ent = section(&text, "Entities");
         assert_eq!(ent[0], "0 0 1 0");
-        let bb: Vec<f64> = ent[1]
-            .split(' ')
-            .skip(1)
-            .take(6)
-            .map(|s| s.parse().unwrap())
-            .collect();
+        let bb: Vec<f64> = ent[1].split(' ').skip(1).take(6).map(|s| s.parse().unwrap()).collect();
         assert!((bb[0] + 1.0).abs() < 1e-12 && (bb[5] - 1.0).abs() < 1e-12);
-        assert!(
-            ent[1].ends_with(" 0 0"),
-            "no physicals, no boundary: {}",
-            ent[1]
-        );
+        assert!(ent[1].ends_with(" 0 0"), "no physicals, no boundary: {}", ent[1]);
         let nodes = section(&text, "Nodes");
         assert_eq!(nodes[0], "1 42 1 42");
         assert_eq!(nodes[1], "2 1 0 42");
         assert_eq!(nodes.len(), 2 + 2 * 42);
-        let xyz: Vec<f64> = nodes[2 + 42]
-            .split(' ')
-            .map(|s| s.parse().unwrap())
-            .collect();
+        let xyz: Vec<f64> = nodes[2 + 42].split(' ').map(|s| s.parse().unwrap()).collect();
         assert_eq!(xyz, mesh.positions[0].as_slice());
         let els = section(&text, "Elements");
         assert_eq!(els[0], "1 80 1 80");
@@ -542,24 +478,12 @@ mod tests {
             positions: vec![Vec3::zeros(), Vec3::x(), Vec3::y(), Vec3::z()],
             tets: vec![[0, 1, 2, 3].map(crate::mesh::VertexId)],
         });
-        m.node_data.push(DataView::contiguous(
-            "frame",
-            9,
-            (0..36).map(f64::from).collect(),
-            1,
-        ));
-        m.element_data.push(DataView {
-            time: 0.5,
-            step: 2,
-            ..DataView::contiguous("q", 3, vec![0.1, 0.2, 0.3], 1)
-        });
+        m.node_data.push(DataView::contiguous("frame", 9, (0..36).map(f64::from).collect(), 1));
+        m.element_data.push(DataView { time: 0.5, step: 2, ..DataView::contiguous("q", 3, vec![0.1, 0.2, 0.3], 1) });
         let text = ascii(&m);
         assert_eq!(section(&text, "Elements")[1], "3 1 4 1");
         let nd = section(&text, "NodeData");
-        assert_eq!(
-            &nd[..9],
-            ["1", "\"frame\"", "1", "0.0", "4", "0", "9", "4", "0"]
-        );
+        assert_eq!(&nd[..9], ["1", "\"frame\"", "1", "0.0", "4", "0", "9", "4", "0"]);
         assert_eq!(nd[9], "1 0.0 1.0 2.0 3.0 4.0 5.0 6.0 7.0 8.0");
         let ed = section(&text, "ElementData");
         assert_eq!(&ed[3..], ["0.5", "4", "2", "3", "1", "0", "1 0.1 0.2 0.3"]);
@@ -568,35 +492,17 @@ mod tests {
     #[test]
     fn parametrizations_follow_gmsh_layout() {
         let mut m = MshModel::from_surface(&fixtures::square(1));
-        m.points.push(PointEntity {
-            tag: 1,
-            position: Vec3::zeros(),
-            physical_tags: vec![],
-        });
-        m.curves.push(CurveEntity {
-            tag: 1,
-            bounding_points: vec![1, -1],
-            physical_tags: vec![3],
-        });
+        m.points.push(PointEntity { tag: 1, position: Vec3::zeros(), physical_tags: vec![] });
+        m.curves.push(CurveEntity { tag: 1, bounding_points: vec![1, -1], physical_tags: vec![3] });
         m.surfaces[0].bounding_curves = vec![1];
         m.curve_parametrizations.push(CurveParametrization {
             curve: 1,
-            points: vec![
-                Vec3::zeros(),
-                Vec3::x(),
-                Vec3::new(1.0, 1.0, 0.0),
-                Vec3::y(),
-                Vec3::zeros(),
-            ],
+            points: vec![Vec3::zeros(), Vec3::x(), Vec3::new(1.0, 1.0, 0.0), Vec3::y(), Vec3::zeros()],
         });
         m.surface_parametrizations.push(SurfaceParametrization {
             surface: 1,
             positions: vec![Vec3::zeros(), Vec3::x(), Vec3::y()],
-            uv: vec![
-                Vec2::new(-1.0, 0.0),
-                Vec2::new(1.0, 0.0),
-                Vec2::new(0.0, 1.0),
-            ],
+            uv: vec![Vec2::new(-1.0, 0.0), Vec2::new(1.0, 0.0), Vec2::new(0.0, 1.0)],
             curvature: vec![],
             triangles: vec![[0, 1, 2]],
         });
@@ -637,6 +543,37 @@ mod tests {
     }
 
     #[test]
+    fn convenience_writers_match_the_model_path() {
+        let tri = fixtures::cube(2);
+        let mut a = Vec::new();
+        write_surface_msh41(&mut a, &tri).unwrap();
+        assert_eq!(String::from_utf8(a).unwrap(), ascii(&MshModel::from_surface(&tri)));
+        let tet = crate::mesh::TetMesh {
+            positions: vec![Vec3::zeros(), Vec3::x(), Vec3::y(), Vec3::z()],
+            tets: vec![[0, 1, 2, 3].map(crate::mesh::VertexId)],
+        };
+        let mut a = Vec::new();
+        write_volume_msh41(&mut a, &tet).unwrap();
+        let text = String::from_utf8(a).unwrap();
+        assert_eq!(section(&text, "Entities")[0], "0 0 0 1");
+        assert_eq!(section(&text, "Elements")[1..], ["3 1 4 1", "1 1 2 3 4"]);
+    }
+
+    #[test]
+    fn binary_data_tags_must_fit_an_int() {
+        let mut m = MshModel::from_surface(&fixtures::square(1));
+        m.node_blocks[0].tags[0] = 1 << 33;
+        m.element_blocks[0].nodes.iter_mut().filter(|n| **n == 1).for_each(|n| *n = 1 << 33);
+        m.node_data.push(DataView { tags: vec![1 << 33], ..DataView::contiguous("f", 1, vec![1.0], 1) });
+        let mut v = Vec::new();
+        write_msh41(&mut v, &m, &Msh41Options::default()).unwrap();
+        assert!(String::from_utf8(v).unwrap().contains("\n8589934592 1.0\n"));
+        let mut v = Vec::new();
+        assert!(matches!(write_msh41(&mut v, &m, &Msh41Options { binary: true }), Err(WriteError::TooLarge { .. })));
+        assert!(v.is_empty());
+    }
+
+    #[test]
     fn binary_layout() {
         let m = MshModel::from_surface(&fixtures::square(1));
         let mut v = Vec::new();
@@ -644,8 +581,7 @@ mod tests {
         let head = b"$MeshFormat\n4.1 1 8\n\x01\x00\x00\x00\n$EndMeshFormat\n$Entities\n";
         assert_eq!(&v[..head.len()], head);
         let nodes = v.windows(7).position(|w| w == b"$Nodes\n").unwrap() + 7;
-        let word =
-            |k: usize| u64::from_le_bytes(v[nodes + 8 * k..nodes + 8 * k + 8].try_into().unwrap());
+        let word = |k: usize| u64::from_le_bytes(v[nodes + 8 * k..nodes + 8 * k + 8].try_into().unwrap());
         assert_eq!([word(0), word(1), word(2), word(3)], [1, 4, 1, 4]);
         let text_end = String::from_utf8_lossy(&v[v.len() - 30..]).into_owned();
         assert!(text_end.ends_with("\n$EndElements\n"), "{text_end:?}");
