@@ -27,8 +27,7 @@ fn load(spec: &str) -> TriMesh {
         "torus" => fixtures::torus(1.0, 0.4, num(1), num(2)),
         "lshape" => fixtures::l_shape(num(1)),
         "square" => fixtures::square(num(1)),
-        p if p.ends_with(".obj") => common::read_obj(Path::new(spec)),
-        _ => common::read_stl(Path::new(spec)),
+        _ => common::load(Path::new(spec)),
     }
 }
 

@@ -218,7 +218,7 @@ fn torus_has_no_singularity() {
         fixtures::torus(1.0, 0.4, 140, 56),
     )];
     if let Some(p) = crossfield_common::data_path("gmsh/torus_20k.stl") {
-        meshes.push(("torus_20k.stl".into(), crossfield_common::read_stl(&p)));
+        meshes.push(("torus_20k.stl".into(), crossfield_common::load(&p)));
     }
     for (name, mesh) in meshes {
         let field = crossfield(&mesh, &CrossfieldOptions::default());
@@ -272,10 +272,10 @@ fn l_shape_strong_boundary_indices_are_at_the_corners() {
 fn cad_parts_with_feature_edges_satisfy_poincare_hopf() {
     let mut parts = Vec::new();
     if let Some(p) = crossfield_common::data_path("corpus/cylinder_coarse.stl") {
-        parts.push(crossfield_common::read_stl(&p));
+        parts.push(crossfield_common::load(&p));
     }
     if let Some(p) = crossfield_common::data_path("corpus/fandisk.obj") {
-        parts.push(crossfield_common::read_obj(&p));
+        parts.push(crossfield_common::load(&p));
     }
     assert!(!parts.is_empty(), "corpus not found");
     for mesh in parts {
