@@ -15,11 +15,13 @@ pub mod assembly;
 pub mod error;
 pub mod krylov;
 pub mod solvers;
+pub mod supernodal;
 
 pub use assembly::{Pattern, Triplets};
 pub use error::LinalgError;
 pub use krylov::{KrylovReport, bicgstab, bicgstab_block, sparse_matvec};
 pub use solvers::{CholeskySolver, LuSolver};
+pub use supernodal::SupernodalCholesky;
 
 /// A sparse matrix in compressed column form.
 pub type SparseMatrix = faer::sparse::SparseColMat<usize, f64>;
