@@ -38,9 +38,13 @@ pub fn current_request_id() -> String {
     REQUEST_ID.try_with(Clone::clone).unwrap_or_else(|_| "-".to_string())
 }
 
-/// An error answered to a client.
+/// An error answered to a client (boxed: handlers return it in `Result`s).
 #[derive(Debug)]
-pub struct ApiError {
+pub struct ApiError(Box<Problem>);
+
+/// The fields of an [`ApiError`].
+#[derive(Debug)]
+struct Problem {
     status: StatusCode,
     kind: &'static str,
     title: &'static str,
@@ -106,36 +110,44 @@ impl ApiError {
     pub fn new(kind: &str, detail: impl Into<String>) -> Self {
         let kind = stable_kind(kind);
         let (status, title) = kind_info(kind);
-        Self { status, kind, title, detail: detail.into(), extra: Map::new(), retry_after: None, cause: None }
+        Self(Box::new(Problem {
+            status,
+            kind,
+            title,
+            detail: detail.into(),
+            extra: Map::new(),
+            retry_after: None,
+            cause: None,
+        }))
     }
 
     /// A server error; `cause` is logged with the request id, never shown.
     pub fn internal(cause: impl std::fmt::Display) -> Self {
         let mut e = Self::new("internal-error", "");
-        e.cause = Some(cause.to_string());
+        e.0.cause = Some(cause.to_string());
         e
     }
 
     /// Adds an extension member to the problem body.
     pub fn with(mut self, key: &str, value: impl Into<Value>) -> Self {
-        self.extra.insert(key.to_string(), value.into());
+        self.0.extra.insert(key.to_string(), value.into());
         self
     }
 
     /// Asks the client to retry after `secs` seconds (`Retry-After`).
     pub fn retry_after(mut self, secs: u64) -> Self {
-        self.retry_after = Some(secs);
+        self.0.retry_after = Some(secs);
         self
     }
 
     /// The HTTP status of this error.
     pub fn status(&self) -> StatusCode {
-        self.status
+        self.0.status
     }
 
     /// The stable kind (suffix of `type`).
     pub fn kind(&self) -> &'static str {
-        self.kind
+        self.0.kind
     }
 
     /// Invalid pipeline parameters (422), or not JSON at all (400).
@@ -178,19 +190,19 @@ impl ApiError {
 
     /// The problem body (with the current request id).
     fn body(&self, request_id: &str) -> Value {
-        let detail = if self.status.is_server_error() {
+        let detail = if self.0.status.is_server_error() {
             format!("the server could not complete the request; quote request id {request_id} when reporting it")
         } else {
-            self.detail.clone()
+            self.0.detail.clone()
         };
         let mut obj = Map::new();
-        obj.insert("type".into(), Value::String(format!("{PROBLEM_TYPE_PREFIX}{}", self.kind)));
-        obj.insert("title".into(), Value::String(self.title.into()));
-        obj.insert("status".into(), Value::from(self.status.as_u16()));
+        obj.insert("type".into(), Value::String(format!("{PROBLEM_TYPE_PREFIX}{}", self.0.kind)));
+        obj.insert("title".into(), Value::String(self.0.title.into()));
+        obj.insert("status".into(), Value::from(self.0.status.as_u16()));
         obj.insert("detail".into(), Value::String(detail));
         obj.insert("request_id".into(), Value::String(request_id.into()));
-        if !self.status.is_server_error() {
-            for (k, v) in &self.extra {
+        if !self.0.status.is_server_error() {
+            for (k, v) in &self.0.extra {
                 obj.insert(k.clone(), v.clone());
             }
         }
@@ -198,21 +210,21 @@ impl ApiError {
     }
 
     fn into_response_with_id(self, request_id: &str) -> Response {
-        if self.status.is_server_error() {
+        if self.0.status.is_server_error() {
             tracing::error!(
                 request_id,
-                kind = self.kind,
-                cause = self.cause.as_deref().unwrap_or(&self.detail),
+                kind = self.0.kind,
+                cause = self.0.cause.as_deref().unwrap_or(&self.0.detail),
                 "request failed"
             );
         } else {
-            tracing::info!(request_id, kind = self.kind, status = self.status.as_u16(), detail = %self.detail, "request rejected");
+            tracing::info!(request_id, kind = self.0.kind, status = self.0.status.as_u16(), detail = %self.0.detail, "request rejected");
         }
         let body = serde_json::to_vec(&self.body(request_id)).unwrap_or_default();
         let mut resp = Response::new(Body::from(body));
-        *resp.status_mut() = self.status;
+        *resp.status_mut() = self.0.status;
         resp.headers_mut().insert(header::CONTENT_TYPE, HeaderValue::from_static(PROBLEM_JSON));
-        if let Some(secs) = self.retry_after {
+        if let Some(secs) = self.0.retry_after {
             resp.headers_mut().insert(header::RETRY_AFTER, HeaderValue::from(secs));
         }
         resp
@@ -305,7 +317,7 @@ async fn problemize(resp: Response, id: &str) -> Response {
         (_, false) => text,
     };
     let mut err = if parts.status.is_server_error() { ApiError::internal(detail) } else { ApiError::new(kind, detail) };
-    err.status = parts.status;
+    err.0.status = parts.status;
     let mut out = err.into_response_with_id(id);
     for (name, value) in &parts.headers {
         if name != header::CONTENT_TYPE && name != header::CONTENT_LENGTH {
