@@ -71,11 +71,7 @@ fn run_meshatlas(file: &Path, stages: &str, out: &Path) -> Run {
     };
     let steps = report["timings"]
         .as_array()
-        .map(|ts| {
-            ts.iter()
-                .filter_map(|t| Some((t["step"].as_str()?.to_string(), t["seconds"].as_f64()?)))
-                .collect()
-        })
+        .map(|ts| ts.iter().filter_map(|t| Some((t["step"].as_str()?.to_string(), t["seconds"].as_f64()?))).collect())
         .unwrap_or_default();
     Run {
         steps,

@@ -96,11 +96,33 @@ fn kind_info(kind: &str) -> (StatusCode, &'static str) {
 fn stable_kind(kind: &str) -> &'static str {
     // Map to the static string so a kind from the database is 'static.
     const KNOWN: &[&str] = &[
-        "bad-request", "invalid-query", "invalid-json", "invalid-multipart", "missing-file", "upload-interrupted",
-        "empty-file", "not-found", "job-not-found", "artifact-not-found", "method-not-allowed", "upload-too-large",
-        "unsupported-media-type", "unknown-format", "invalid-params", "queue-full", "service-unavailable",
-        "truncated", "parse-error", "non-finite-coordinate", "index-out-of-range", "too-many-triangles",
-        "no-triangles", "unsupported", "stage-failed", "time-limit-exceeded", "interrupted",
+        "bad-request",
+        "invalid-query",
+        "invalid-json",
+        "invalid-multipart",
+        "missing-file",
+        "upload-interrupted",
+        "empty-file",
+        "not-found",
+        "job-not-found",
+        "artifact-not-found",
+        "method-not-allowed",
+        "upload-too-large",
+        "unsupported-media-type",
+        "unknown-format",
+        "invalid-params",
+        "queue-full",
+        "service-unavailable",
+        "truncated",
+        "parse-error",
+        "non-finite-coordinate",
+        "index-out-of-range",
+        "too-many-triangles",
+        "no-triangles",
+        "unsupported",
+        "stage-failed",
+        "time-limit-exceeded",
+        "interrupted",
     ];
     KNOWN.iter().find(|k| **k == kind).copied().unwrap_or("internal-error")
 }

@@ -1,11 +1,11 @@
 //! Route handlers: thin adapters from HTTP to [`crate::jobs::JobService`].
 
+use axum::Json;
 use axum::body::Body;
 use axum::extract::rejection::QueryRejection;
 use axum::extract::{FromRequest, Path, Query, Request, State};
 use axum::http::{HeaderValue, StatusCode, header};
 use axum::response::{IntoResponse, Response};
-use axum::Json;
 use serde::Deserialize;
 use serde_json::{Value, json};
 use tower::ServiceExt;
@@ -110,25 +110,37 @@ pub async fn submit_job(
     query: Result<Query<SubmitQuery>, QueryRejection>,
     req: Request,
 ) -> Result<Response, ApiError> {
-    let Query(q) = query.map_err(bad_query)?;
-    let limit = st.limits.max_upload_bytes;
-    if upload::content_length(req.headers()).is_some_and(|n| n > limit) {
-        return Err(ApiError::upload_too_large(limit));
-    }
-    if !st.jobs.has_queue_room().await? {
-        return Err(queue_full(&st));
-    }
+    // Errors found before the body is read still read (and discard) it, so
+    // the client gets the answer rather than a reset connection.
+    let headers = req.headers().clone();
+    let early = async {
+        let Query(q) = query.map_err(bad_query)?;
+        let limit = st.limits.max_upload_bytes;
+        if upload::content_length(&headers).is_some_and(|n| n > limit) {
+            return Err(ApiError::upload_too_large(limit));
+        }
+        if !st.jobs.has_queue_room().await? {
+            return Err(queue_full(&st));
+        }
+        let is_multipart = upload::media_type(&headers).is_some_and(|m| m == "multipart/form-data");
+        // Parameters of a raw upload are all in the query: reject bad ones before reading the body.
+        let early_params = if is_multipart { None } else { Some(params_json(&q, None)?) };
+        Ok((q, limit, is_multipart, early_params))
+    };
+    let (q, limit, is_multipart, early_params) = match early.await {
+        Ok(v) => v,
+        Err(e) => {
+            upload::drain(req.into_body().into_data_stream()).await;
+            return Err(e);
+        }
+    };
     let path = st.jobs.upload_path();
-    let is_multipart = upload::media_type(req.headers()).is_some_and(|m| m == "multipart/form-data");
-    // Parameters of a raw upload are all in the query: reject bad ones before reading the body.
-    let early_params = if is_multipart { None } else { Some(params_json(&q, None)?) };
     let mut up = if is_multipart {
         let mp = axum::extract::Multipart::from_request(req, &st)
             .await
             .map_err(|e| ApiError::new("invalid-multipart", e.body_text()))?;
         upload::receive_multipart(mp, path, limit).await?
     } else {
-        let headers = req.headers().clone();
         upload::receive_raw(req.into_body(), &headers, path, limit).await?
     };
     if up.filename.is_none() {
@@ -200,7 +212,8 @@ pub async fn list_jobs(
     let cursor = match q.cursor.as_deref() {
         None | Some("") => None,
         Some(c) => Some(c.parse::<i64>().map_err(|_| {
-            ApiError::new("invalid-query", format!("cursor `{c}` is not a cursor from a previous page")).with("field", "cursor")
+            ApiError::new("invalid-query", format!("cursor `{c}` is not a cursor from a previous page"))
+                .with("field", "cursor")
         })?),
     };
     let page = st.jobs.list(limit, cursor).await?;
@@ -247,10 +260,9 @@ pub async fn get_artifact(
 
 /// `GET /healthz`.
 pub async fn healthz(State(st): State<AppState>) -> Result<Json<Value>, ApiError> {
-    st.jobs
-        .health()
-        .await
-        .map_err(|e| ApiError::new("service-unavailable", "the job store does not answer").with("cause", e.to_string()))?;
+    st.jobs.health().await.map_err(|e| {
+        ApiError::new("service-unavailable", "the job store does not answer").with("cause", e.to_string())
+    })?;
     Ok(Json(json!({"status": "ok", "version": env!("CARGO_PKG_VERSION")})))
 }
 

@@ -92,6 +92,28 @@ pub fn media_type(headers: &HeaderMap) -> Option<String> {
     (!mt.is_empty()).then_some(mt)
 }
 
+/// Most bytes read and discarded after a rejected upload.
+pub const DRAIN_MAX_BYTES: u64 = 16 * 1024 * 1024;
+/// Longest time spent discarding a rejected upload.
+pub const DRAIN_MAX_TIME: std::time::Duration = std::time::Duration::from_secs(2);
+
+/// Reads and discards what is left of a rejected upload (at most
+/// [`DRAIN_MAX_BYTES`] for at most [`DRAIN_MAX_TIME`]), so that a client
+/// still sending gets the error response instead of a connection reset.
+/// Larger uploads are cut off: the connection closes after the response.
+pub async fn drain<E>(mut stream: impl Stream<Item = Result<Bytes, E>> + Unpin) {
+    let discard = async {
+        let mut n = 0u64;
+        while let Some(Ok(chunk)) = stream.next().await {
+            n += chunk.len() as u64;
+            if n > DRAIN_MAX_BYTES {
+                break;
+            }
+        }
+    };
+    let _ = tokio::time::timeout(DRAIN_MAX_TIME, discard).await;
+}
+
 /// Streams `stream` into `upload`'s file, enforcing `limit` on the total.
 async fn stream_to_file<E: std::fmt::Display>(
     mut stream: impl Stream<Item = Result<Bytes, E>> + Unpin,
@@ -102,9 +124,11 @@ async fn stream_to_file<E: std::fmt::Display>(
         .await
         .map_err(|e| ApiError::internal(format!("cannot create {}: {e}", upload.path.display())))?;
     while let Some(chunk) = stream.next().await {
-        let chunk = chunk.map_err(|e| ApiError::new("upload-interrupted", format!("reading the upload failed: {e}")))?;
+        let chunk =
+            chunk.map_err(|e| ApiError::new("upload-interrupted", format!("reading the upload failed: {e}")))?;
         upload.bytes += chunk.len() as u64;
         if upload.bytes > limit {
+            drain(stream).await;
             return Err(ApiError::upload_too_large(limit));
         }
         if upload.head.len() < HEAD_BYTES {
@@ -141,10 +165,7 @@ async fn read_small_part(mut field: axum::extract::multipart::Field<'_>, name: &
     {
         buf.extend_from_slice(&chunk);
         if buf.len() > MAX_PARAMS_BYTES {
-            return Err(ApiError::new(
-                "invalid-params",
-                format!("the `{name}` part exceeds {MAX_PARAMS_BYTES} bytes"),
-            ));
+            return Err(ApiError::new("invalid-params", format!("the `{name}` part exceeds {MAX_PARAMS_BYTES} bytes")));
         }
     }
     Ok(buf)
@@ -170,9 +191,8 @@ pub async fn receive_multipart(mut mp: Multipart, path: PathBuf, limit: u64) -> 
                 }
                 have_file = true;
                 up.filename = field.file_name().map(str::to_string);
-                up.content_type = field.content_type().map(|c| {
-                    c.split(';').next().unwrap_or("").trim().to_ascii_lowercase()
-                });
+                up.content_type =
+                    field.content_type().map(|c| c.split(';').next().unwrap_or("").trim().to_ascii_lowercase());
                 stream_to_file(field, &mut up, limit).await?;
             }
             "params" => {
@@ -225,7 +245,10 @@ pub fn resolve_format(explicit: Option<&str>, upload: &Upload) -> Result<Option<
         && !is_generic_media_type(mt)
     {
         let known = match mt {
-            "model/stl" | "application/sla" | "application/vnd.ms-pki.stl" | "model/x.stl-ascii"
+            "model/stl"
+            | "application/sla"
+            | "application/vnd.ms-pki.stl"
+            | "model/x.stl-ascii"
             | "model/x.stl-binary" => Some("stl"),
             "model/obj" | "text/x-obj" => Some("obj"),
             "model/ply" | "application/ply" | "text/x-ply" => Some("ply"),

@@ -317,18 +317,17 @@ fn run_job(inner: &Arc<Inner>, rec: JobRecord, job: &Arc<RunningJob>) {
         }
     };
     let live_seconds = job.stage_seconds_now();
-    let final_state = record_result(inner, &rec, job, result, &out_dir, live_seconds);
-    let elapsed = started.elapsed().as_secs_f64();
-    if let Some((state, secs)) = final_state {
-        inner.metrics.job_finished(state, elapsed, &secs);
-        info!(state = state.as_str(), seconds = elapsed, "job finished");
+    let final_state = record_result(inner, &rec, job, result, &out_dir, live_seconds, started);
+    if let Some(state) = final_state {
+        info!(state = state.as_str(), seconds = started.elapsed().as_secs_f64(), "job finished");
     }
     inner.running().remove(&rec.id);
     inner.wake.notify_all();
 }
 
-/// Stores the end of a job; returns its final state and the per-stage
-/// seconds stored (`None` when it was deleted or put back in the queue).
+/// Stores the end of a job; returns its final state (`None` when it was
+/// deleted or put back in the queue). Metrics are counted before the final
+/// state is stored, so a client that sees the state also sees the metrics.
 fn record_result(
     inner: &Arc<Inner>,
     rec: &JobRecord,
@@ -336,15 +335,22 @@ fn record_result(
     result: std::thread::Result<Result<JobOutcome, ExecError>>,
     out_dir: &Path,
     live_seconds: BTreeMap<String, f64>,
-) -> Option<(JobState, BTreeMap<String, f64>)> {
+    started: Instant,
+) -> Option<JobState> {
     let store = &inner.store;
     let reason = job.reason();
-    let failed = |e: JobError, secs: &BTreeMap<String, f64>| match store.finish_failed(rec.id, &e, secs) {
-        Ok(true) => Some((JobState::Failed, secs.clone())),
-        Ok(false) => None,
-        Err(err) => {
-            error!(error = %err, "cannot record the job failure");
-            None
+    let count = |state: JobState, secs: &BTreeMap<String, f64>| {
+        inner.metrics.job_finished(state, started.elapsed().as_secs_f64(), secs);
+    };
+    let failed = |e: JobError, secs: &BTreeMap<String, f64>| {
+        count(JobState::Failed, secs);
+        match store.finish_failed(rec.id, &e, secs) {
+            Ok(true) => Some(JobState::Failed),
+            Ok(false) => None,
+            Err(err) => {
+                error!(error = %err, "cannot record the job failure");
+                None
+            }
         }
     };
     let outcome = match (reason, result) {
@@ -359,8 +365,9 @@ fn record_result(
             return None;
         }
         (Some(StopReason::Cancel), _) => {
+            count(JobState::Cancelled, &live_seconds);
             return match store.cancel_if(rec.id, JobState::Running) {
-                Ok(true) => Some((JobState::Cancelled, live_seconds)),
+                Ok(true) => Some(JobState::Cancelled),
                 Ok(false) => None,
                 Err(e) => {
                     error!(error = %e, "cannot record the cancellation");
@@ -391,10 +398,7 @@ fn record_result(
             return failed(e, &live_seconds);
         }
         (None, Ok(Err(ExecError::Cancelled))) => {
-            return failed(
-                JobError::new("internal-error", "the job stopped without being asked to"),
-                &live_seconds,
-            );
+            return failed(JobError::new("internal-error", "the job stopped without being asked to"), &live_seconds);
         }
         (_, Ok(Ok(outcome))) => outcome,
     };
@@ -409,8 +413,9 @@ fn record_result(
     for (k, v) in live_seconds {
         secs.entry(k).or_insert(v);
     }
+    count(JobState::Succeeded, &secs);
     match store.finish_succeeded(rec.id, &outcome.summary, &secs, &artifacts) {
-        Ok(true) => Some((JobState::Succeeded, secs)),
+        Ok(true) => Some(JobState::Succeeded),
         Ok(false) => {
             remove_job_dir(&inner.config, rec.id);
             None

@@ -250,11 +250,11 @@ impl Store {
     /// [`StoreError`] on database failure or an undecodable row.
     pub fn list(&self, limit: usize, before: Option<i64>) -> Result<JobPage, StoreError> {
         let conn = self.conn();
-        let mut stmt = conn.prepare(&format!("SELECT {COLUMNS} FROM jobs WHERE seq < ?1 ORDER BY seq DESC LIMIT ?2"))?;
+        let mut stmt =
+            conn.prepare(&format!("SELECT {COLUMNS} FROM jobs WHERE seq < ?1 ORDER BY seq DESC LIMIT ?2"))?;
         let take = i64::try_from(limit.saturating_add(1)).unwrap_or(i64::MAX);
-        let raws = stmt
-            .query_map(params![before.unwrap_or(i64::MAX), take], RawRow::read)?
-            .collect::<Result<Vec<_>, _>>()?;
+        let raws =
+            stmt.query_map(params![before.unwrap_or(i64::MAX), take], RawRow::read)?.collect::<Result<Vec<_>, _>>()?;
         drop(stmt);
         drop(conn);
         let mut jobs = raws.into_iter().map(RawRow::into_record).collect::<Result<Vec<_>, _>>()?;
@@ -402,7 +402,8 @@ impl Store {
             let rows = stmt.query_map([], |r| Ok((r.get::<_, String>(0)?, r.get::<_, i64>(1)?)))?;
             for row in rows {
                 let (id, attempts) = row?;
-                let job = id.parse::<JobId>().map_err(|e| StoreError::Corrupt { id: id.clone(), what: e.to_string() })?;
+                let job =
+                    id.parse::<JobId>().map_err(|e| StoreError::Corrupt { id: id.clone(), what: e.to_string() })?;
                 if attempts >= i64::from(max_attempts) {
                     tx.execute(
                         "UPDATE jobs SET state = 'failed', finished_ms = ?2, error_kind = 'interrupted', \
@@ -475,9 +476,7 @@ mod tests {
     use super::*;
 
     fn insert(store: &Store, max: usize) -> Option<JobRecord> {
-        store
-            .insert_queued(JobId::random(), "a.stl", 10, Some("stl"), &serde_json::json!({"stages": []}), max)
-            .unwrap()
+        store.insert_queued(JobId::random(), "a.stl", 10, Some("stl"), &serde_json::json!({"stages": []}), max).unwrap()
     }
 
     #[test]

@@ -114,7 +114,7 @@ async fn cancel_stops_a_running_job_within_a_second_and_progress_is_visible() {
     };
     let svc = JobService::start(config(dir.path()), Arc::new(exec)).unwrap();
     let rec = submit(&svc).await.unwrap();
-    let running = wait_for(&svc, rec.id, |r| r.state == JobState::Running && r.stage.is_some()).await;
+    let running = wait_for(&svc, rec.id, |r| r.state == JobState::Running && r.progress > 0.25).await;
     assert_eq!(running.stage.as_deref(), Some("spin"));
     assert!((running.progress - 0.5).abs() < 1e-12, "{}", running.progress);
     assert!(running.stage_seconds.contains_key("spin"));
@@ -214,4 +214,19 @@ async fn a_restart_requeues_the_interrupted_job() {
     let done = wait_for(&svc, id, |r| r.state.is_final()).await;
     assert_eq!((done.state, done.attempts), (JobState::Succeeded, 2));
     assert!(!dir.path().join("jobs/not-a-job").exists(), "orphaned directories are removed");
+}
+
+#[tokio::test]
+async fn shutdown_puts_the_running_job_back_without_counting_the_attempt() {
+    let dir = tempfile::tempdir().unwrap();
+    let exec = |_: &JobInput, p: &Progress| wait_for_cancel(p);
+    let svc = JobService::start(config(dir.path()), Arc::new(exec)).unwrap();
+    let rec = submit(&svc).await.unwrap();
+    wait_for(&svc, rec.id, |r| r.state == JobState::Running).await;
+    svc.shutdown(Duration::from_secs(5)).await;
+    drop(svc);
+    let quick = |_: &JobInput, _: &Progress| Ok(JobOutcome::default());
+    let svc = JobService::start(config(dir.path()), Arc::new(quick)).unwrap();
+    let done = wait_for(&svc, rec.id, |r| r.state.is_final()).await;
+    assert_eq!((done.state, done.attempts), (JobState::Succeeded, 1));
 }

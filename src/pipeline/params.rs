@@ -45,8 +45,11 @@ impl StageName {
         if let Some(s) = Self::ALL.iter().find(|s| s.as_str() == name) {
             return Ok(*s);
         }
-        let available =
-            if Self::ALL.is_empty() { "none".to_string() } else { Self::ALL.iter().map(|s| s.as_str()).collect::<Vec<_>>().join(", ") };
+        let available = if Self::ALL.is_empty() {
+            "none".to_string()
+        } else {
+            Self::ALL.iter().map(|s| s.as_str()).collect::<Vec<_>>().join(", ")
+        };
         if Self::PLANNED.contains(&name) {
             Err(format!("stage `{name}` is not available in this build (available stages: {available})"))
         } else {

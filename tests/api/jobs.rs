@@ -94,8 +94,8 @@ async fn cancel_and_delete_stop_running_jobs_within_a_second() {
     let a = s.submit_ok("", "application/octet-stream", b"a".to_vec()).await;
     let b = s.submit_ok("", "application/octet-stream", b"b".to_vec()).await;
     let (a, b) = (a["id"].as_str().unwrap().to_string(), b["id"].as_str().unwrap().to_string());
-    let running = s.wait_until(&a, |j| j["state"] == "running" && j["stage"] == "spin").await;
-    assert_eq!(running["progress"], 0.5);
+    let running = s.wait_until(&a, |j| j["state"] == "running" && j["progress"] == 0.5).await;
+    assert_eq!(running["stage"], "spin");
     s.wait_until(&b, |j| j["state"] == "running").await;
 
     let t = Instant::now();
