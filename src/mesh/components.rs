@@ -17,7 +17,10 @@ pub struct DisjointSets {
 impl DisjointSets {
     /// `n` singletons.
     pub fn new(n: usize) -> Self {
-        Self { parent: (0..n as u32).collect(), size: vec![1; n] }
+        Self {
+            parent: (0..n as u32).collect(),
+            size: vec![1; n],
+        }
     }
 
     /// Representative of the set containing `x`.
@@ -97,7 +100,10 @@ pub fn face_components(topo: &Topology, blocked: impl Fn(EdgeId) -> bool) -> Com
         }
     }
     let (component_per_face, n_components) = sets.labels();
-    Components { component_per_face, n_components }
+    Components {
+        component_per_face,
+        n_components,
+    }
 }
 
 /// Edge-connected components of the whole mesh.
@@ -167,8 +173,10 @@ mod tests {
         let a = fixtures::tetrahedron();
         let mut m = a.clone();
         let n = m.positions.len() as u32;
-        m.positions.extend(a.positions.iter().map(|p| p + Vec3::new(5.0, 0.0, 0.0)));
-        m.triangles.extend(a.triangles.iter().map(|t| t.map(|v| VertexId(v.0 + n))));
+        m.positions
+            .extend(a.positions.iter().map(|p| p + Vec3::new(5.0, 0.0, 0.0)));
+        m.triangles
+            .extend(a.triangles.iter().map(|t| t.map(|v| VertexId(v.0 + n))));
         let t = Topology::new(&m);
         let c = connected_components(&t);
         assert_eq!(c.n_components, 2);
