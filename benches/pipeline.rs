@@ -6,7 +6,13 @@
 //!
 //! ```sh
 //! cargo bench --bench pipeline -- [--gmsh] [--stages atlas,crossfield] [--out bench-out] FILE...
+//! cargo bench --bench pipeline -- --generate sphere:1000000:bench-out/sphere_1m.stl [FILE...]
 //! ```
+//!
+//! `--generate KIND:N:PATH` (repeatable) first writes a binary STL of about
+//! N triangles: `sphere` (a cube grid projected on the unit sphere, 12·n²
+//! triangles) or `torus` (radii 1 and 0.3, 6·n² triangles), then benches it
+//! with the other files.
 //!
 //! It is stage-agnostic: rows come from the `timings` of the pipeline
 //! report (`meshatlas run --json`), so a new stage shows up by itself.
@@ -34,6 +40,10 @@ struct Args {
     /// Directory for the outputs.
     #[arg(long, default_value = "bench-out")]
     out: PathBuf,
+    /// Generate an input first: `sphere:N:PATH` or `torus:N:PATH` (about N
+    /// triangles, binary STL). Repeatable; generated files are benched too.
+    #[arg(long)]
+    generate: Vec<String>,
     /// Passed by `cargo bench`; ignored.
     #[arg(long, hide = true)]
     bench: bool,
@@ -107,12 +117,53 @@ fn run_gmsh(file: &Path, stages: &str) -> Run {
     run
 }
 
+/// Writes the mesh described by `spec` (`KIND:N:PATH`) and returns its path.
+fn generate(spec: &str) -> Result<PathBuf, String> {
+    let mut parts = spec.splitn(3, ':');
+    let (kind, n, path) = match (parts.next(), parts.next(), parts.next()) {
+        (Some(k), Some(n), Some(p)) => (k, n, PathBuf::from(p)),
+        _ => return Err(format!("--generate {spec}: expected KIND:N:PATH")),
+    };
+    let n: f64 = n.parse().map_err(|_| format!("--generate {spec}: N must be a number"))?;
+    let mesh = match kind {
+        "sphere" => {
+            let k = ((n / 12.0).sqrt().round() as usize).max(1);
+            let mut m = meshatlas::mesh::fixtures::cube(k);
+            for p in &mut m.positions {
+                *p = p.normalize();
+            }
+            m
+        }
+        "torus" => {
+            let k = ((n / 6.0).sqrt().round() as usize).max(3);
+            meshatlas::mesh::fixtures::torus(1.0, 0.3, 3 * k, k)
+        }
+        other => return Err(format!("--generate {spec}: unknown kind `{other}` (sphere or torus)")),
+    };
+    if let Some(dir) = path.parent() {
+        std::fs::create_dir_all(dir).map_err(|e| format!("{}: {e}", dir.display()))?;
+    }
+    let file = std::fs::File::create(&path).map_err(|e| format!("{}: {e}", path.display()))?;
+    meshatlas::io::stl_write::write_stl_binary(file, &mesh).map_err(|e| format!("{}: {e}", path.display()))?;
+    eprintln!("generated {} ({} triangles)", path.display(), mesh.n_faces());
+    Ok(path)
+}
+
 fn mib(kb: Option<u64>) -> String {
     kb.map(|k| format!("{:.1}", k as f64 / 1024.0)).unwrap_or_else(|| "-".into())
 }
 
 fn main() {
-    let args = Args::parse();
+    let mut args = Args::parse();
+    for spec in &args.generate {
+        match generate(spec) {
+            Ok(p) => args.files.push(p),
+            Err(e) => {
+                eprintln!("{e}");
+                std::process::exit(2);
+            }
+        }
+    }
     if args.files.is_empty() {
         eprintln!("usage: cargo bench --bench pipeline -- [--gmsh] [--stages LIST] FILE...");
         std::process::exit(2);
