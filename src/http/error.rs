@@ -55,83 +55,54 @@ struct Problem {
     cause: Option<String>,
 }
 
-/// Status and title of each stable failure kind. Kinds from the mesh
+/// Every stable failure kind with its status and title. Kinds from the mesh
 /// readers (`parse-error`, `truncated`, …) and the job runner appear in job
-/// resources; the others are request errors.
-fn kind_info(kind: &str) -> (StatusCode, &'static str) {
-    match kind {
-        "bad-request" => (StatusCode::BAD_REQUEST, "Bad request"),
-        "invalid-query" => (StatusCode::BAD_REQUEST, "Invalid query parameter"),
-        "invalid-json" => (StatusCode::BAD_REQUEST, "Parameters are not valid JSON"),
-        "invalid-multipart" => (StatusCode::BAD_REQUEST, "Malformed multipart body"),
-        "missing-file" => (StatusCode::BAD_REQUEST, "No file in the upload"),
-        "upload-interrupted" => (StatusCode::BAD_REQUEST, "The upload was interrupted"),
-        "empty-file" => (StatusCode::BAD_REQUEST, "The uploaded file is empty"),
-        "not-found" => (StatusCode::NOT_FOUND, "No such resource"),
-        "job-not-found" => (StatusCode::NOT_FOUND, "No such job"),
-        "artifact-not-found" => (StatusCode::NOT_FOUND, "No such artifact"),
-        "method-not-allowed" => (StatusCode::METHOD_NOT_ALLOWED, "Method not allowed"),
-        "upload-too-large" => (StatusCode::PAYLOAD_TOO_LARGE, "Upload too large"),
-        "unsupported-media-type" => (StatusCode::UNSUPPORTED_MEDIA_TYPE, "Unsupported media type"),
-        "unknown-format" => (StatusCode::UNSUPPORTED_MEDIA_TYPE, "Unknown mesh format"),
-        "invalid-params" => (StatusCode::UNPROCESSABLE_ENTITY, "Invalid pipeline parameters"),
-        "queue-full" => (StatusCode::TOO_MANY_REQUESTS, "Job queue full"),
-        "service-unavailable" => (StatusCode::SERVICE_UNAVAILABLE, "Service unavailable"),
-        // Job failures caused by the input (reader errors and limits).
-        "truncated" => (StatusCode::UNPROCESSABLE_ENTITY, "Truncated mesh file"),
-        "parse-error" => (StatusCode::UNPROCESSABLE_ENTITY, "Mesh file does not parse"),
-        "non-finite-coordinate" => (StatusCode::UNPROCESSABLE_ENTITY, "Non-finite coordinate"),
-        "index-out-of-range" => (StatusCode::UNPROCESSABLE_ENTITY, "Face index out of range"),
-        "too-many-triangles" => (StatusCode::UNPROCESSABLE_ENTITY, "Too many triangles"),
-        "no-triangles" => (StatusCode::UNPROCESSABLE_ENTITY, "No triangles in the mesh"),
-        "unsupported" => (StatusCode::UNPROCESSABLE_ENTITY, "Unsupported mesh content"),
-        "stage-failed" => (StatusCode::UNPROCESSABLE_ENTITY, "A pipeline stage failed on this input"),
-        "time-limit-exceeded" => (StatusCode::UNPROCESSABLE_ENTITY, "Job time limit exceeded"),
-        "interrupted" => (StatusCode::SERVICE_UNAVAILABLE, "Job interrupted repeatedly"),
-        _ => (StatusCode::INTERNAL_SERVER_ERROR, "Internal server error"),
-    }
-}
+/// resources; the others are request errors. Unknown kinds are
+/// `internal-error` (500).
+const KINDS: &[(&str, StatusCode, &str)] = &[
+    ("bad-request", StatusCode::BAD_REQUEST, "Bad request"),
+    ("invalid-query", StatusCode::BAD_REQUEST, "Invalid query parameter"),
+    ("invalid-json", StatusCode::BAD_REQUEST, "Parameters are not valid JSON"),
+    ("invalid-multipart", StatusCode::BAD_REQUEST, "Malformed multipart body"),
+    ("missing-file", StatusCode::BAD_REQUEST, "No file in the upload"),
+    ("upload-interrupted", StatusCode::BAD_REQUEST, "The upload was interrupted"),
+    ("empty-file", StatusCode::BAD_REQUEST, "The uploaded file is empty"),
+    ("not-found", StatusCode::NOT_FOUND, "No such resource"),
+    ("job-not-found", StatusCode::NOT_FOUND, "No such job"),
+    ("artifact-not-found", StatusCode::NOT_FOUND, "No such artifact"),
+    ("method-not-allowed", StatusCode::METHOD_NOT_ALLOWED, "Method not allowed"),
+    ("upload-too-large", StatusCode::PAYLOAD_TOO_LARGE, "Upload too large"),
+    ("range-not-satisfiable", StatusCode::RANGE_NOT_SATISFIABLE, "Range not satisfiable"),
+    ("unsupported-media-type", StatusCode::UNSUPPORTED_MEDIA_TYPE, "Unsupported media type"),
+    ("unknown-format", StatusCode::UNSUPPORTED_MEDIA_TYPE, "Unknown mesh format"),
+    ("invalid-params", StatusCode::UNPROCESSABLE_ENTITY, "Invalid pipeline parameters"),
+    ("queue-full", StatusCode::TOO_MANY_REQUESTS, "Job queue full"),
+    ("service-unavailable", StatusCode::SERVICE_UNAVAILABLE, "Service unavailable"),
+    // Job failures caused by the input (reader errors and limits).
+    ("truncated", StatusCode::UNPROCESSABLE_ENTITY, "Truncated mesh file"),
+    ("parse-error", StatusCode::UNPROCESSABLE_ENTITY, "Mesh file does not parse"),
+    ("non-finite-coordinate", StatusCode::UNPROCESSABLE_ENTITY, "Non-finite coordinate"),
+    ("index-out-of-range", StatusCode::UNPROCESSABLE_ENTITY, "Face index out of range"),
+    ("too-many-triangles", StatusCode::UNPROCESSABLE_ENTITY, "Too many triangles"),
+    ("no-triangles", StatusCode::UNPROCESSABLE_ENTITY, "No triangles in the mesh"),
+    ("unsupported", StatusCode::UNPROCESSABLE_ENTITY, "Unsupported mesh content"),
+    ("stage-failed", StatusCode::UNPROCESSABLE_ENTITY, "A pipeline stage failed on this input"),
+    ("time-limit-exceeded", StatusCode::UNPROCESSABLE_ENTITY, "Job time limit exceeded"),
+    ("interrupted", StatusCode::SERVICE_UNAVAILABLE, "Job interrupted repeatedly"),
+    ("internal-error", StatusCode::INTERNAL_SERVER_ERROR, "Internal server error"),
+];
 
-/// The `title` of the problem type for `kind` (one per kind).
-fn stable_kind(kind: &str) -> &'static str {
-    // Map to the static string so a kind from the database is 'static.
-    const KNOWN: &[&str] = &[
-        "bad-request",
-        "invalid-query",
-        "invalid-json",
-        "invalid-multipart",
-        "missing-file",
-        "upload-interrupted",
-        "empty-file",
-        "not-found",
-        "job-not-found",
-        "artifact-not-found",
-        "method-not-allowed",
-        "upload-too-large",
-        "unsupported-media-type",
-        "unknown-format",
-        "invalid-params",
-        "queue-full",
-        "service-unavailable",
-        "truncated",
-        "parse-error",
-        "non-finite-coordinate",
-        "index-out-of-range",
-        "too-many-triangles",
-        "no-triangles",
-        "unsupported",
-        "stage-failed",
-        "time-limit-exceeded",
-        "interrupted",
-    ];
-    KNOWN.iter().find(|k| **k == kind).copied().unwrap_or("internal-error")
+/// The table entry of `kind` (`internal-error` when unknown), so a kind
+/// read from the database becomes `'static`.
+fn kind_entry(kind: &str) -> (&'static str, StatusCode, &'static str) {
+    let last = KINDS[KINDS.len() - 1];
+    KINDS.iter().copied().find(|(k, _, _)| *k == kind).unwrap_or(last)
 }
 
 impl ApiError {
     /// An error of a known `kind` with a client-facing `detail`.
     pub fn new(kind: &str, detail: impl Into<String>) -> Self {
-        let kind = stable_kind(kind);
-        let (status, title) = kind_info(kind);
+        let (kind, status, title) = kind_entry(kind);
         Self(Box::new(Problem {
             status,
             kind,
@@ -195,8 +166,7 @@ impl ApiError {
     /// The problem+json object of a failed job (shown inside the job
     /// resource; its `status` is what a synchronous request would have got).
     pub fn job_problem(e: &JobError) -> Value {
-        let kind = stable_kind(&e.kind);
-        let (status, title) = kind_info(kind);
+        let (kind, status, title) = kind_entry(&e.kind);
         let detail = if status.is_server_error() && kind == "internal-error" {
             "the job stopped because of an internal error; it has been logged".to_string()
         } else {
@@ -289,6 +259,7 @@ fn kind_for_status(status: StatusCode) -> &'static str {
         StatusCode::NOT_FOUND => "not-found",
         StatusCode::METHOD_NOT_ALLOWED => "method-not-allowed",
         StatusCode::PAYLOAD_TOO_LARGE => "upload-too-large",
+        StatusCode::RANGE_NOT_SATISFIABLE => "range-not-satisfiable",
         StatusCode::UNSUPPORTED_MEDIA_TYPE => "unsupported-media-type",
         StatusCode::TOO_MANY_REQUESTS => "queue-full",
         StatusCode::SERVICE_UNAVAILABLE => "service-unavailable",
