@@ -572,6 +572,36 @@ mod tests {
     }
 
     #[test]
+    fn filling_a_concave_hole_beats_neumann() {
+        // Thesis ch. 2 fig. 2.9: with homogeneous Neumann conditions the hole
+        // becomes convex in (u, v) and the map nearly singular along it;
+        // the pseudo-centre filling keeps it usable.
+        let m = fixtures::l_plate_with_l_hole(24);
+        let run = |max_hole_fill_vertices| {
+            let opts = AtlasOptions {
+                max_hole_fill_vertices,
+                ..Default::default()
+            };
+            let a = build_atlas(&m, &opts, &Progress::none()).unwrap();
+            check_invariants(&m, &a);
+            assert_eq!(a.patches.len(), 1);
+            a.patches[0].report.clone()
+        };
+        let filled = run(1000);
+        let neumann = run(0);
+        assert_eq!((filled.n_holes_filled, filled.n_holes_neumann), (1, 0));
+        assert_eq!((neumann.n_holes_filled, neumann.n_holes_neumann), (0, 1));
+        assert!(
+            filled.sigma_ratio_min > 2.0 * neumann.sigma_ratio_min,
+            "filled {} vs Neumann {}",
+            filled.sigma_ratio_min,
+            neumann.sigma_ratio_min
+        );
+        // Measured: min σ2/σ1 0.151 filled vs 0.0052 Neumann; medians 0.68 vs 0.49.
+        assert!(filled.sigma_ratio_median > neumann.sigma_ratio_median);
+    }
+
+    #[test]
     fn small_patch_cap_forces_size_splits() {
         let m = fixtures::disk(12);
         let opts = AtlasOptions {

@@ -48,17 +48,30 @@ pub enum PatchDefect {
 impl PatchMesh {
     /// Extract the triangles `faces` of `mesh` as a local mesh.
     pub fn extract(mesh: &TriMesh, faces: &[FaceId]) -> Self {
-        let mut local_of = std::collections::HashMap::with_capacity(faces.len());
         let mut global_vertices = Vec::with_capacity(faces.len() / 2 + 3);
         let mut triangles = Vec::with_capacity(faces.len());
-        for &f in faces {
-            let t = mesh.triangles[f.idx()].map(|v| {
-                *local_of.entry(v).or_insert_with(|| {
-                    global_vertices.push(v);
-                    VertexId::new(global_vertices.len() - 1)
-                })
-            });
-            triangles.push(t);
+        if faces.len() * 16 >= mesh.n_vertices() {
+            // Large patch: a dense map over the mesh vertices is cheapest.
+            let mut local_of = vec![u32::MAX; mesh.n_vertices()];
+            for &f in faces {
+                triangles.push(mesh.triangles[f.idx()].map(|v| {
+                    if local_of[v.idx()] == u32::MAX {
+                        local_of[v.idx()] = global_vertices.len() as u32;
+                        global_vertices.push(v);
+                    }
+                    VertexId(local_of[v.idx()])
+                }));
+            }
+        } else {
+            let mut local_of = std::collections::HashMap::with_capacity(faces.len());
+            for &f in faces {
+                triangles.push(mesh.triangles[f.idx()].map(|v| {
+                    *local_of.entry(v).or_insert_with(|| {
+                        global_vertices.push(v);
+                        VertexId::new(global_vertices.len() - 1)
+                    })
+                }));
+            }
         }
         let positions = global_vertices
             .iter()

@@ -285,6 +285,18 @@ pub fn write_vtu(w: impl Write, mesh: &VtuMesh<'_>, opts: &VtuOptions) -> Result
     mesh.validate()?;
     let n_conn: usize = mesh.cells.iter().map(|b| b.indices().len()).sum();
     let wide = mesh.points.len() > i32::MAX as usize || n_conn > i32::MAX as usize;
+    if opts.header_type == VtuHeaderType::UInt32 && opts.encoding != VtuEncoding::Ascii {
+        let sources =
+            [Source::Points(mesh.points), Source::Connectivity(&mesh.cells, wide), Source::Offsets(&mesh.cells, wide)];
+        let data = mesh.point_data.iter().chain(&mesh.cell_data).map(|a| Source::Values(&a.values));
+        if let Some(n) = sources.into_iter().chain(data).map(|s| s.n_bytes()).find(|&n| n > u32::MAX as usize) {
+            return Err(WriteError::TooLarge {
+                what: "VTU array bytes with a UInt32 header",
+                count: n,
+                max: u64::from(u32::MAX),
+            });
+        }
+    }
     let mut arrays: Vec<(Source<'_>, String)> = Vec::new();
     let mut xml = XmlOut::new(w, opts);
     xml.text("<?xml version=\"1.0\"?>\n<VTKFile type=\"UnstructuredGrid\" version=\"1.0\" byte_order=\"LittleEndian\" header_type=\"");
@@ -362,7 +374,9 @@ impl Source<'_> {
     fn n_bytes(&self) -> usize {
         match self {
             Self::Points(p) => 24 * p.len(),
-            Self::Connectivity(c, wide) => c.iter().map(|b| b.indices().len()).sum::<usize>() * if *wide { 8 } else { 4 },
+            Self::Connectivity(c, wide) => {
+                c.iter().map(|b| b.indices().len()).sum::<usize>() * if *wide { 8 } else { 4 }
+            }
             Self::Offsets(c, wide) => c.iter().map(CellBlock::len).sum::<usize>() * if *wide { 8 } else { 4 },
             Self::Types(c) => c.iter().map(CellBlock::len).sum(),
             Self::Values(v) => match v {
@@ -466,10 +480,8 @@ impl<'s, W: Write> XmlOut<'s, W> {
     /// Write the `DataArray` elements of `arrays` (draining it).
     fn arrays(&mut self, arrays: &mut Vec<(Source<'s>, String)>) -> Result<(), WriteError> {
         for (src, attrs) in arrays.drain(..) {
+            // With a UInt32 header, sizes were checked to fit before writing started.
             let n = src.n_bytes();
-            if !self.header64 && n > u32::MAX as usize {
-                return Err(WriteError::TooLarge { what: "VTU array bytes with a UInt32 header", count: n, max: u64::from(u32::MAX) });
-            }
             match self.encoding {
                 VtuEncoding::Ascii => {
                     self.text(&format!("<DataArray {attrs} format=\"ascii\">\n"));
@@ -507,10 +519,10 @@ impl<'s, W: Write> XmlOut<'s, W> {
                 Scalar::U(x) => push_u64(buf, x),
             }
             k += 1;
-            buf.push(if k % 6 == 0 { b'\n' } else { b' ' });
+            buf.push(if k.is_multiple_of(6) { b'\n' } else { b' ' });
             flush_if_full(w, buf, CHUNK)
         })?;
-        if k % 6 != 0 {
+        if !k.is_multiple_of(6) {
             self.buf.push(b'\n');
         }
         Ok(())
@@ -565,8 +577,8 @@ impl<'s, W: Write> XmlOut<'s, W> {
 /// Append the base64 encoding of `bytes` to `buf`.
 fn push_base64(buf: &mut Vec<u8>, bytes: &[u8]) -> std::io::Result<()> {
     let start = buf.len();
-    let n = base64::encoded_len(bytes.len(), true)
-        .ok_or_else(|| std::io::Error::other("base64 length overflows usize"))?;
+    let n =
+        base64::encoded_len(bytes.len(), true).ok_or_else(|| std::io::Error::other("base64 length overflows usize"))?;
     buf.resize(start + n, 0);
     let written = B64.encode_slice(bytes, &mut buf[start..]).map_err(std::io::Error::other)?;
     buf.truncate(start + written);
@@ -579,6 +591,14 @@ fn push_base64(buf: &mut Vec<u8>, bytes: &[u8]) -> std::io::Result<()> {
 /// A validation error or [`WriteError::Io`].
 pub fn write_surface_vtu(w: impl Write, mesh: &TriMesh) -> Result<(), WriteError> {
     write_vtu(w, &VtuMesh::from_surface(mesh), &VtuOptions::default())
+}
+
+/// Write the tetrahedra of `mesh` with default options (raw appended, UInt64 headers).
+///
+/// # Errors
+/// A validation error or [`WriteError::Io`].
+pub fn write_volume_vtu(w: impl Write, mesh: &TetMesh) -> Result<(), WriteError> {
+    write_vtu(w, &VtuMesh::from_volume(mesh), &VtuOptions::default())
 }
 
 #[cfg(test)]
@@ -612,7 +632,10 @@ mod tests {
         let m = fixtures::square(1);
         let text = String::from_utf8(write(&sample(&m), VtuEncoding::Ascii, VtuHeaderType::UInt64)).unwrap();
         assert!(text.contains("NumberOfPoints=\"4\" NumberOfCells=\"2\""));
-        assert_eq!(array_text(&text, "connectivity").split_whitespace().collect::<Vec<_>>(), ["0", "1", "3", "0", "3", "2"]);
+        assert_eq!(
+            array_text(&text, "connectivity").split_whitespace().collect::<Vec<_>>(),
+            ["0", "1", "3", "0", "3", "2"]
+        );
         assert_eq!(array_text(&text, "offsets"), "3 6");
         assert_eq!(array_text(&text, "types"), "5 5");
         assert_eq!(array_text(&text, "patch"), "0 1");
@@ -632,7 +655,8 @@ mod tests {
         assert_eq!(B64.decode(&s[8..]).unwrap(), [5, 5]);
         let p = array_text(&text, "Points");
         assert_eq!(B64.decode(&p[..8]).unwrap(), 96u32.to_le_bytes());
-        let xyz: Vec<f64> = B64.decode(&p[8..]).unwrap().chunks_exact(8).map(|c| f64::from_le_bytes(c.try_into().unwrap())).collect();
+        let xyz: Vec<f64> =
+            B64.decode(&p[8..]).unwrap().chunks_exact(8).map(|c| f64::from_le_bytes(c.try_into().unwrap())).collect();
         assert_eq!(xyz, m.positions.iter().flat_map(|p| [p.x, p.y, p.z]).collect::<Vec<_>>());
     }
 
@@ -657,6 +681,26 @@ mod tests {
     }
 
     #[test]
+    fn convenience_writers_use_the_defaults() {
+        let m = fixtures::torus(1.0, 0.3, 6, 4);
+        let mut a = Vec::new();
+        write_surface_vtu(&mut a, &m).unwrap();
+        assert_eq!(a, write(&VtuMesh::from_surface(&m), VtuEncoding::Raw, VtuHeaderType::UInt64));
+        let tets = TetMesh {
+            positions: vec![Vec3::zeros(), Vec3::x(), Vec3::y(), Vec3::z()],
+            tets: vec![[0, 1, 2, 3].map(VertexId)],
+        };
+        let mut v = Vec::new();
+        write_volume_vtu(&mut v, &tets).unwrap();
+        let text = String::from_utf8_lossy(&v);
+        assert!(text.contains("NumberOfPoints=\"4\" NumberOfCells=\"1\""));
+        let ascii =
+            String::from_utf8(write(&VtuMesh::from_volume(&tets), VtuEncoding::Ascii, VtuHeaderType::UInt64)).unwrap();
+        assert_eq!(array_text(&ascii, "types"), "10");
+        assert_eq!(array_text(&ascii, "offsets"), "4");
+    }
+
+    #[test]
     fn validation() {
         let m = fixtures::square(1);
         let mut mesh = sample(&m);
@@ -668,7 +712,10 @@ mod tests {
         ));
         let bad = [[VertexId(0), VertexId(7)]];
         let mesh = VtuMesh { points: &m.positions, cells: vec![CellBlock::Lines(&bad)], ..Default::default() };
-        assert!(matches!(write_vtu(&mut v, &mesh, &VtuOptions::default()), Err(WriteError::IndexOutOfRange { index: 7, .. })));
+        assert!(matches!(
+            write_vtu(&mut v, &mesh, &VtuOptions::default()),
+            Err(WriteError::IndexOutOfRange { index: 7, .. })
+        ));
         assert!(v.is_empty());
     }
 }

@@ -54,7 +54,9 @@ pub enum WriteError {
     },
 
     /// An element type placed on an entity of another dimension.
-    #[error("element block of {element_type} (dimension {element_dim}) is placed on entity ({entity_dim}, {entity_tag})")]
+    #[error(
+        "element block of {element_type} (dimension {element_dim}) is placed on entity ({entity_dim}, {entity_tag})"
+    )]
     DimensionMismatch {
         /// Element type name.
         element_type: &'static str,

@@ -52,6 +52,24 @@ pub fn l_shape(n: usize) -> TriMesh {
     compact(m)
 }
 
+/// A concave planar domain with a concave hole (thesis ch. 2 fig. 2.9): the
+/// L-shaped region `[0,1]² \ [2/3,1]²` with an L-shaped hole made of the
+/// squares `[1/6,1/2]×[1/6,1/3]` and `[1/6,1/3]×[1/3,1/2]`; `n` cells per unit
+/// length (a multiple of 6).
+pub fn l_plate_with_l_hole(n: usize) -> TriMesh {
+    let k = n / 6;
+    let keep = |i: usize, j: usize| {
+        let outer_notch = i >= 4 * k && j >= 4 * k;
+        let hole_bar = (k..3 * k).contains(&i) && (k..2 * k).contains(&j);
+        let hole_leg = (k..2 * k).contains(&i) && (2 * k..3 * k).contains(&j);
+        !(outer_notch || hole_bar || hole_leg)
+    };
+    let m = grid_mesh_cells(6 * k, 6 * k, keep, true, |i, j| {
+        Vec3::new(i as f64 / (6 * k) as f64, j as f64 / (6 * k) as f64, 0.0)
+    });
+    compact(m)
+}
+
 /// Unit disk in the plane `z = 0`: a centre and `n_rings` rings, ring `k`
 /// holding `6k` vertices at radius `k / n_rings` (near-equilateral triangles).
 pub fn disk(n_rings: usize) -> TriMesh {

@@ -106,7 +106,12 @@ impl<'m> DiscreteModelBuilder<'m> {
     /// [`WriteError::Invalid`] for an empty patch, an unknown boundary curve
     /// or a map with mismatched lengths; [`WriteError::IndexOutOfRange`] for
     /// a face not in the mesh.
-    pub fn add_patch(&mut self, faces: Vec<FaceId>, boundary: Vec<EntityTag>, uv: Option<PatchUv>) -> Result<EntityTag, WriteError> {
+    pub fn add_patch(
+        &mut self,
+        faces: Vec<FaceId>,
+        boundary: Vec<EntityTag>,
+        uv: Option<PatchUv>,
+    ) -> Result<EntityTag, WriteError> {
         let tag = self.patches.len() as EntityTag + 1;
         if faces.is_empty() {
             return Err(WriteError::Invalid(format!("patch {tag} has no face")));
@@ -137,11 +142,13 @@ impl<'m> DiscreteModelBuilder<'m> {
     /// The model: entities, classified nodes, elements and parametrizations.
     ///
     /// # Errors
-    /// [`WriteError::Invalid`] when a face is in two patches, a vertex lies
-    /// inside two curves, or a patch face has a vertex missing from its map;
-    /// then any error of [`MshModel::validate`].
+    /// [`WriteError::Invalid`] when the mesh is invalid ([`TriMesh::validate`]),
+    /// a face is in two patches, a vertex lies inside two curves, or a patch
+    /// face has a vertex missing from its map; then any error of
+    /// [`MshModel::validate`].
     pub fn build(&self) -> Result<MshModel, WriteError> {
         let mesh = self.mesh;
+        mesh.validate().map_err(|e| WriteError::Invalid(format!("mesh: {e}")))?;
         let n_faces = mesh.n_faces() as u64;
         // Classification: (dim, entity tag) per vertex, lowest dimension wins.
         let mut class: Vec<Option<(u8, EntityTag)>> = vec![None; mesh.n_vertices()];
@@ -167,7 +174,10 @@ impl<'m> DiscreteModelBuilder<'m> {
             let tag = k as EntityTag + 1;
             for &f in faces {
                 if face_patch[f.idx()] != 0 {
-                    return Err(WriteError::Invalid(format!("face {f} is in patches {} and {tag}", face_patch[f.idx()])));
+                    return Err(WriteError::Invalid(format!(
+                        "face {f} is in patches {} and {tag}",
+                        face_patch[f.idx()]
+                    )));
                 }
                 face_patch[f.idx()] = tag;
                 for v in mesh.triangles[f.idx()] {
@@ -176,14 +186,17 @@ impl<'m> DiscreteModelBuilder<'m> {
             }
         }
 
-        let mut model = MshModel::default();
-        model.points = self
+        let points = self
             .corners
             .iter()
             .enumerate()
-            .map(|(k, &v)| PointEntity { tag: k as EntityTag + 1, position: mesh.positions[v.idx()], physical_tags: vec![] })
+            .map(|(k, &v)| PointEntity {
+                tag: k as EntityTag + 1,
+                position: mesh.positions[v.idx()],
+                physical_tags: vec![],
+            })
             .collect();
-        model.curves = self
+        let curves = self
             .curves
             .iter()
             .enumerate()
@@ -196,14 +209,19 @@ impl<'m> DiscreteModelBuilder<'m> {
                 }
             })
             .collect();
-        model.surfaces = self
+        let surfaces = self
             .patches
             .iter()
             .enumerate()
-            .map(|(k, (_, boundary, _))| SurfaceEntity { tag: k as EntityTag + 1, bounding_curves: boundary.clone(), physical_tags: vec![] })
+            .map(|(k, (_, boundary, _))| SurfaceEntity {
+                tag: k as EntityTag + 1,
+                bounding_curves: boundary.clone(),
+                physical_tags: vec![],
+            })
             .collect();
 
-        model.node_blocks = node_blocks(mesh, &class, self.corners.len(), self.curves.len(), self.patches.len());
+        let node_blocks = node_blocks(mesh, &class, self.corners.len(), self.curves.len(), self.patches.len());
+        let mut model = MshModel { points, curves, surfaces, node_blocks, ..Default::default() };
 
         let mut next_tag = n_faces + 1;
         let mut take = |n: usize| {
@@ -265,13 +283,23 @@ impl<'m> DiscreteModelBuilder<'m> {
         if v.idx() < self.mesh.n_vertices() {
             Ok(())
         } else {
-            Err(WriteError::IndexOutOfRange { what: what.to_string(), index: u64::from(v.0), n_points: self.mesh.n_vertices() })
+            Err(WriteError::IndexOutOfRange {
+                what: what.to_string(),
+                index: u64::from(v.0),
+                n_points: self.mesh.n_vertices(),
+            })
         }
     }
 }
 
 /// One node block per entity that has classified vertices, points first.
-fn node_blocks(mesh: &TriMesh, class: &[Option<(u8, EntityTag)>], n_points: usize, n_curves: usize, n_patches: usize) -> Vec<NodeBlock> {
+fn node_blocks(
+    mesh: &TriMesh,
+    class: &[Option<(u8, EntityTag)>],
+    n_points: usize,
+    n_curves: usize,
+    n_patches: usize,
+) -> Vec<NodeBlock> {
     let offsets = [0, n_points, n_points + n_curves, n_points + n_curves + n_patches];
     let mut blocks: Vec<NodeBlock> = (0..offsets[3])
         .map(|i| {
@@ -298,11 +326,20 @@ fn node_blocks(mesh: &TriMesh, class: &[Option<(u8, EntityTag)>], n_points: usiz
 
 /// The parametrization of patch `tag`: its map's points, and its faces (sorted
 /// like the element block) as local indices.
-fn surface_parametrization(mesh: &TriMesh, tag: EntityTag, faces: &[FaceId], uv: &PatchUv) -> Result<SurfaceParametrization, WriteError> {
+fn surface_parametrization(
+    mesh: &TriMesh,
+    tag: EntityTag,
+    faces: &[FaceId],
+    uv: &PatchUv,
+) -> Result<SurfaceParametrization, WriteError> {
     let mut local = std::collections::HashMap::with_capacity(uv.vertices.len());
     for (i, &v) in uv.vertices.iter().enumerate() {
         if v.idx() >= mesh.n_vertices() {
-            return Err(WriteError::IndexOutOfRange { what: format!("patch {tag} map"), index: u64::from(v.0), n_points: mesh.n_vertices() });
+            return Err(WriteError::IndexOutOfRange {
+                what: format!("patch {tag} map"),
+                index: u64::from(v.0),
+                n_points: mesh.n_vertices(),
+            });
         }
         if local.insert(v, i as u32).is_some() {
             return Err(WriteError::Invalid(format!("patch {tag} map lists vertex {v} twice")));
@@ -352,7 +389,11 @@ mod tests {
         chain.push(ring[0]);
         let curve = b.add_curve(chain).unwrap();
         let all: Vec<VertexId> = (0..mesh.n_vertices()).map(VertexId::new).collect();
-        let uv = PatchUv { uv: all.iter().map(|v| mesh.positions[v.idx()].xy()).collect(), vertices: all, curvature: vec![] };
+        let uv = PatchUv {
+            uv: all.iter().map(|v| mesh.positions[v.idx()].xy()).collect(),
+            vertices: all,
+            curvature: vec![],
+        };
         b.add_patch((0..mesh.n_faces()).map(FaceId::new).collect(), vec![curve], Some(uv)).unwrap();
         let model = b.build().unwrap();
         (mesh, model)
@@ -399,5 +440,10 @@ mod tests {
         let uv = PatchUv { vertices: vec![VertexId(0), VertexId(1)], uv: vec![Vec2::zeros(); 2], curvature: vec![] };
         b.add_patch(vec![FaceId(0)], vec![], Some(uv)).unwrap();
         assert!(matches!(b.build(), Err(WriteError::Invalid(m)) if m.contains("has no (u, v)")));
+        let mut broken = fixtures::square(1);
+        broken.triangles[1][2] = VertexId(40);
+        let mut b = DiscreteModelBuilder::new(&broken);
+        b.add_patch(vec![FaceId(0), FaceId(1)], vec![], None).unwrap();
+        assert!(matches!(b.build(), Err(WriteError::Invalid(m)) if m.starts_with("mesh: ")));
     }
 }

@@ -1,4 +1,5 @@
-//! Gmsh MSH 4.1: the general model ([`model::MshModel`]), a builder for
+//! Gmsh MSH 4.1, ASCII and binary. Reading lives in [`read`] (see
+//! [`crate::io::msh_common`] for what the versions share); writing: the general model ([`model::MshModel`]), a builder for
 //! discrete atlases ([`discrete::DiscreteModelBuilder`]) and the writer
 //! ([`write::write_msh41`]; layout in [`write`]).
 //!
@@ -74,5 +75,6 @@
 //!   `%.16g`; we write them sorted and with shortest round-trip precision.
 
 pub mod discrete;
+pub mod read;
 pub mod model;
 pub mod write;

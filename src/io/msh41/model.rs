@@ -339,6 +339,18 @@ impl MshModel {
         self.index().map(|_| ())
     }
 
+    /// Every entity as `(dim, tag, physical tags, bounding tags)`, points
+    /// first, then curves, surfaces, volumes.
+    pub(crate) fn entity_rows(&self) -> impl Iterator<Item = EntityRow<'_>> {
+        fn row<'a>(dim: u8, tag: EntityTag, physical_tags: &'a [i32], boundary: &'a [EntityTag]) -> EntityRow<'a> {
+            EntityRow { dim, tag, physical_tags, boundary }
+        }
+        (self.points.iter().map(|e| row(0, e.tag, &e.physical_tags, &[])))
+            .chain(self.curves.iter().map(|e| row(1, e.tag, &e.physical_tags, &e.bounding_points)))
+            .chain(self.surfaces.iter().map(|e| row(2, e.tag, &e.physical_tags, &e.bounding_curves)))
+            .chain(self.volumes.iter().map(|e| row(3, e.tag, &e.physical_tags, &e.bounding_surfaces)))
+    }
+
     /// Validate and build the lookups the writers need.
     pub(crate) fn index(&self) -> Result<ModelIndex, WriteError> {
         let entities = self.check_entities()?;
@@ -353,42 +365,33 @@ impl MshModel {
     /// Entity tags per dimension; checks tags, bounding references, physicals, names.
     fn check_entities(&self) -> Result<[HashSet<EntityTag>; 4], WriteError> {
         let mut sets: [HashSet<EntityTag>; 4] = Default::default();
-        let lists: [(&'static str, Vec<(EntityTag, &[i32])>); 4] = [
-            ("point entity", self.points.iter().map(|e| (e.tag, e.physical_tags.as_slice())).collect()),
-            ("curve entity", self.curves.iter().map(|e| (e.tag, e.physical_tags.as_slice())).collect()),
-            ("surface entity", self.surfaces.iter().map(|e| (e.tag, e.physical_tags.as_slice())).collect()),
-            ("volume entity", self.volumes.iter().map(|e| (e.tag, e.physical_tags.as_slice())).collect()),
-        ];
-        for (dim, (what, list)) in lists.iter().enumerate() {
-            for &(tag, physicals) in list {
-                positive(what, i64::from(tag))?;
-                if !sets[dim].insert(tag) {
-                    return Err(WriteError::DuplicateTag { what, tag: tag as u64 });
-                }
-                for &p in physicals {
-                    positive("physical", i64::from(p))?;
-                }
+        const WHAT: [&str; 4] = ["point entity", "curve entity", "surface entity", "volume entity"];
+        for row in self.entity_rows() {
+            let what = WHAT[usize::from(row.dim)];
+            positive(what, i64::from(row.tag))?;
+            if !sets[usize::from(row.dim)].insert(row.tag) {
+                return Err(WriteError::DuplicateTag { what, tag: row.tag as u64 });
+            }
+            for &p in row.physical_tags {
+                positive("physical", i64::from(p))?;
             }
         }
         for p in &self.points {
             check_finite(&p.position, || format!("point entity {}", p.tag))?;
         }
-        let bounds: [(u8, &'static str, Vec<(EntityTag, &[EntityTag])>); 3] = [
-            (1, "curve", self.curves.iter().map(|e| (e.tag, e.bounding_points.as_slice())).collect()),
-            (2, "surface", self.surfaces.iter().map(|e| (e.tag, e.bounding_curves.as_slice())).collect()),
-            (3, "volume", self.volumes.iter().map(|e| (e.tag, e.bounding_surfaces.as_slice())).collect()),
-        ];
-        for (dim, what, list) in &bounds {
-            for &(tag, boundary) in list {
-                for &b in boundary {
-                    let lower = usize::from(*dim - 1);
-                    if b == 0 || !sets[lower].contains(&b.abs()) {
-                        return Err(WriteError::MissingEntity {
-                            referrer: format!("{what} {tag} boundary"),
-                            dim: dim - 1,
-                            tag: b.abs(),
-                        });
-                    }
+        for row in self.entity_rows() {
+            for &b in row.boundary {
+                let lower = usize::from(row.dim.saturating_sub(1));
+                if b == 0 || !sets[lower].contains(&b.abs()) {
+                    return Err(WriteError::MissingEntity {
+                        referrer: format!(
+                            "{} {} boundary",
+                            ["point", "curve", "surface", "volume"][usize::from(row.dim)],
+                            row.tag
+                        ),
+                        dim: row.dim - 1,
+                        tag: b.abs(),
+                    });
                 }
             }
         }
@@ -410,7 +413,11 @@ impl MshModel {
             let label = || format!("node block ({}, {})", block.entity_dim, block.entity_tag);
             same_len(label() + " positions", block.tags.len(), block.positions.len())?;
             if let Some(p) = &block.parametric {
-                same_len(label() + " parametric coordinates", block.tags.len() * usize::from(block.entity_dim), p.len())?;
+                same_len(
+                    label() + " parametric coordinates",
+                    block.tags.len() * usize::from(block.entity_dim),
+                    p.len(),
+                )?;
             }
             for (i, (&tag, p)) in block.tags.iter().zip(&block.positions).enumerate() {
                 positive_u64("node", tag)?;
@@ -466,7 +473,11 @@ impl MshModel {
                         allowed: "MSH views take 1, 3 or 9",
                     });
                 }
-                same_len(format!("view {:?} values", view.name), view.tags.len() * view.n_components, view.values.len())?;
+                same_len(
+                    format!("view {:?} values", view.name),
+                    view.tags.len() * view.n_components,
+                    view.values.len(),
+                )?;
                 let mut seen = vec![false; lookup.len()];
                 for &tag in &view.tags {
                     let Some(slot) = lookup.rank(tag) else {
@@ -490,7 +501,11 @@ impl MshModel {
                 return Err(WriteError::DuplicateTag { what: "curve parametrization", tag: p.curve as u64 });
             }
             if p.points.len() < 2 {
-                return Err(WriteError::Invalid(format!("parametrization of curve {} has {} point(s), needs 2", p.curve, p.points.len())));
+                return Err(WriteError::Invalid(format!(
+                    "parametrization of curve {} has {} point(s), needs 2",
+                    p.curve,
+                    p.points.len()
+                )));
             }
             for (i, x) in p.points.iter().enumerate() {
                 check_finite(x, || format!("parametrization of curve {}, point {i}", p.curve))?;
@@ -510,18 +525,28 @@ impl MshModel {
                 return Err(WriteError::Invalid(label("has no triangle")));
             }
             if p.positions.len() > i32::MAX as usize {
-                return Err(WriteError::TooLarge { what: "parametrization points", count: p.positions.len(), max: i32::MAX as u64 });
+                return Err(WriteError::TooLarge {
+                    what: "parametrization points",
+                    count: p.positions.len(),
+                    max: i32::MAX as u64,
+                });
             }
             for (i, x) in p.positions.iter().enumerate() {
                 check_finite(x, || label(&format!("point {i}")))?;
                 let uv = p.uv[i];
                 if !(uv.x.is_finite() && uv.y.is_finite()) {
-                    return Err(WriteError::NonFiniteCoordinate { what: label(&format!("(u, v) {i}")), x: uv.x, y: uv.y, z: 0.0 });
+                    return Err(WriteError::NonFiniteCoordinate {
+                        what: label(&format!("(u, v) {i}")),
+                        x: uv.x,
+                        y: uv.y,
+                        z: 0.0,
+                    });
                 }
             }
             // Without the polyline of each bounding curve Gmsh cannot mesh the
             // boundary after `mesh.clear()`, and then silently skips the surface.
-            let boundary = self.surfaces.iter().find(|e| e.tag == p.surface).map_or(&[][..], |e| &e.bounding_curves[..]);
+            let boundary =
+                self.surfaces.iter().find(|e| e.tag == p.surface).map_or(&[][..], |e| &e.bounding_curves[..]);
             if let Some(c) = boundary.iter().find(|c| !self.curve_parametrizations.iter().any(|q| q.curve == c.abs())) {
                 return Err(WriteError::Invalid(format!(
                     "surface {} has a parametrization but its boundary curve {} has none (Gmsh could not remesh it)",
@@ -549,58 +574,58 @@ impl MshModel {
     /// boxes of its bounding entities.
     fn entity_bounding_boxes(&self, nodes: &TagLookup) -> HashMap<(u8, EntityTag), BoundingBox> {
         let mut boxes: HashMap<(u8, EntityTag), BoundingBox> = HashMap::new();
-        let grow = |boxes: &mut HashMap<(u8, EntityTag), BoundingBox>, key, p: &Vec3| {
-            boxes
-                .entry(key)
-                .and_modify(|b: &mut BoundingBox| {
-                    b.min = b.min.inf(p);
-                    b.max = b.max.sup(p);
-                })
-                .or_insert(BoundingBox { min: *p, max: *p });
+        // Boxes are accumulated per block, then merged once per block.
+        let merge = |boxes: &mut HashMap<(u8, EntityTag), BoundingBox>, key, b: Option<BoundingBox>| {
+            if let Some(b) = b {
+                boxes
+                    .entry(key)
+                    .and_modify(|a: &mut BoundingBox| {
+                        a.min = a.min.inf(&b.min);
+                        a.max = a.max.sup(&b.max);
+                    })
+                    .or_insert(b);
+            }
         };
         for p in &self.points {
-            grow(&mut boxes, (0, p.tag), &p.position);
+            merge(&mut boxes, (0, p.tag), BoundingBox::of_points([&p.position]));
         }
         for b in &self.node_blocks {
-            for p in &b.positions {
-                grow(&mut boxes, (b.entity_dim, b.entity_tag), p);
-            }
+            merge(&mut boxes, (b.entity_dim, b.entity_tag), BoundingBox::of_points(&b.positions));
         }
         for b in &self.element_blocks {
-            for &n in &b.nodes {
-                if let Some(slot) = nodes.get(n) {
-                    let (blk, i) = unpack(slot);
-                    grow(&mut boxes, (b.entity_dim, b.entity_tag), &self.node_blocks[blk].positions[i]);
-                }
-            }
+            let points = b.nodes.iter().filter_map(|&n| nodes.get(n)).map(|slot| {
+                let (blk, i) = unpack(slot);
+                &self.node_blocks[blk].positions[i]
+            });
+            merge(&mut boxes, (b.entity_dim, b.entity_tag), BoundingBox::of_points(points));
         }
         for p in &self.curve_parametrizations {
-            for x in &p.points {
-                grow(&mut boxes, (1, p.curve), x);
-            }
+            merge(&mut boxes, (1, p.curve), BoundingBox::of_points(&p.points));
         }
         for p in &self.surface_parametrizations {
-            for x in &p.positions {
-                grow(&mut boxes, (2, p.surface), x);
-            }
+            merge(&mut boxes, (2, p.surface), BoundingBox::of_points(&p.positions));
         }
-        let children: [(u8, Vec<(EntityTag, &[EntityTag])>); 3] = [
-            (1, self.curves.iter().map(|e| (e.tag, e.bounding_points.as_slice())).collect()),
-            (2, self.surfaces.iter().map(|e| (e.tag, e.bounding_curves.as_slice())).collect()),
-            (3, self.volumes.iter().map(|e| (e.tag, e.bounding_surfaces.as_slice())).collect()),
-        ];
-        for (dim, list) in &children {
-            for &(tag, boundary) in list {
-                for &c in boundary {
-                    if let Some(cb) = boxes.get(&(dim - 1, c.abs())).copied() {
-                        grow(&mut boxes, (*dim, tag), &cb.min);
-                        grow(&mut boxes, (*dim, tag), &cb.max);
-                    }
-                }
+        // Rows come in increasing dimension, so children are complete first.
+        for row in self.entity_rows() {
+            for &c in row.boundary {
+                let child = boxes.get(&(row.dim - 1, c.abs())).copied();
+                merge(&mut boxes, (row.dim, row.tag), child);
             }
         }
         boxes
     }
+}
+
+/// One entity seen uniformly (see [`MshModel::entity_rows`]).
+pub(crate) struct EntityRow<'a> {
+    /// Dimension.
+    pub(crate) dim: u8,
+    /// Tag.
+    pub(crate) tag: EntityTag,
+    /// Physical tags.
+    pub(crate) physical_tags: &'a [i32],
+    /// Signed bounding entity tags (empty for points).
+    pub(crate) boundary: &'a [EntityTag],
 }
 
 /// What validation learned, reused while writing.
@@ -628,7 +653,7 @@ impl TagLookup {
             return Err(WriteError::DuplicateTag { what, tag: w[0].0 });
         }
         let max = all.last().map_or(0, |&(t, _)| t);
-        let dense = if all.len() <= u32::MAX as usize - 1 && max <= 4 * all.len() as u64 + 1024 {
+        let dense = if all.len() < u32::MAX as usize && max <= 4 * all.len() as u64 + 1024 {
             let mut d = vec![0u32; max as usize + 1];
             for (r, &(t, _)) in all.iter().enumerate() {
                 d[t as usize] = r as u32 + 1;

@@ -41,6 +41,22 @@ pub struct Msh41Options {
 /// A validation error (nothing written) or [`WriteError::Io`].
 pub fn write_msh41(w: impl Write, model: &MshModel, opts: &Msh41Options) -> Result<(), WriteError> {
     let index = model.index()?;
+    if opts.binary {
+        // Gmsh and meshio read the entry tag of a binary data section as an `int`.
+        let too_big = model
+            .node_data
+            .iter()
+            .chain(&model.element_data)
+            .flat_map(|v| v.tags.iter())
+            .find(|&&t| t > i32::MAX as u64);
+        if let Some(&tag) = too_big {
+            return Err(WriteError::TooLarge {
+                what: "tag in a binary data section",
+                count: tag as usize,
+                max: i32::MAX as u64,
+            });
+        }
+    }
     let mut out = Out::new(w, opts.binary);
     out.text(if opts.binary { "$MeshFormat\n4.1 1 8\n" } else { "$MeshFormat\n4.1 0 8\n" });
     if opts.binary {
@@ -193,20 +209,14 @@ fn write_entities<W: Write>(out: &mut Out<W>, model: &MshModel, index: &ModelInd
         tag_list_size(out, &p.physical_tags);
         out.line()?;
     }
-    let higher = model
-        .curves
-        .iter()
-        .map(|e| (1u8, e.tag, &e.physical_tags, &e.bounding_points))
-        .chain(model.surfaces.iter().map(|e| (2, e.tag, &e.physical_tags, &e.bounding_curves)))
-        .chain(model.volumes.iter().map(|e| (3, e.tag, &e.physical_tags, &e.bounding_surfaces)));
-    for (dim, tag, physicals, boundary) in higher {
-        out.int(tag);
-        let bb = index.bboxes.get(&(dim, tag)).map_or([0.0; 6], |b| b.to_array());
+    for row in model.entity_rows().filter(|r| r.dim > 0) {
+        out.int(row.tag);
+        let bb = index.bboxes.get(&(row.dim, row.tag)).map_or([0.0; 6], |b| b.to_array());
         for c in bb {
             out.real(c);
         }
-        tag_list_size(out, physicals);
-        tag_list_size(out, boundary);
+        tag_list_size(out, row.physical_tags);
+        tag_list_size(out, row.boundary);
         out.line()?;
     }
     out.end("Entities")?;
@@ -379,13 +389,8 @@ fn write_view<W: Write>(out: &mut Out<W>, section: &str, view: &DataView) -> Res
     let nc = view.n_components;
     for (i, &tag) in view.tags.iter().enumerate() {
         if out.binary {
-            // Gmsh and meshio read the entry tag of a binary data section as an `int`.
-            let t = i32::try_from(tag).map_err(|_| WriteError::TooLarge {
-                what: "tag in a binary data section",
-                count: tag as usize,
-                max: i32::MAX as u64,
-            })?;
-            out.int(t);
+            // Checked against i32::MAX before writing started.
+            out.int(tag as i32);
         } else {
             out.size(tag);
         }
@@ -510,8 +515,17 @@ mod tests {
         let p = section(&text, "Parametrizations");
         assert_eq!(&p[..4], ["1 1", "1", "5", "0.0 0.0 0.0 0.0"]);
         assert_eq!(p[6], "0.0 1.0 0.0 3.0");
-        assert_eq!(&p[8..], ["1", "3 1", "0.0 0.0 0.0 -1.0 0.0 0.0 0.0 0.0 0.0 0.0 0.0",
-            "1.0 0.0 0.0 1.0 0.0 0.0 0.0 0.0 0.0 0.0 0.0", "0.0 1.0 0.0 0.0 1.0 0.0 0.0 0.0 0.0 0.0 0.0", "0 1 2"]);
+        assert_eq!(
+            &p[8..],
+            [
+                "1",
+                "3 1",
+                "0.0 0.0 0.0 -1.0 0.0 0.0 0.0 0.0 0.0 0.0 0.0",
+                "1.0 0.0 0.0 1.0 0.0 0.0 0.0 0.0 0.0 0.0 0.0",
+                "0.0 1.0 0.0 0.0 1.0 0.0 0.0 0.0 0.0 0.0 0.0",
+                "0 1 2"
+            ]
+        );
         // Parametrizations come after the mesh, data after them.
         assert!(text.find("$EndElements").unwrap() < text.find("$Parametrizations").unwrap());
     }
@@ -521,7 +535,41 @@ mod tests {
         let mut m = MshModel::from_surface(&fixtures::square(1));
         m.element_blocks[0].nodes[0] = 77;
         let mut v = Vec::new();
-        assert!(matches!(write_msh41(&mut v, &m, &Msh41Options::default()), Err(WriteError::MissingNode { node: 77, .. })));
+        assert!(matches!(
+            write_msh41(&mut v, &m, &Msh41Options::default()),
+            Err(WriteError::MissingNode { node: 77, .. })
+        ));
+        assert!(v.is_empty());
+    }
+
+    #[test]
+    fn convenience_writers_match_the_model_path() {
+        let tri = fixtures::cube(2);
+        let mut a = Vec::new();
+        write_surface_msh41(&mut a, &tri).unwrap();
+        assert_eq!(String::from_utf8(a).unwrap(), ascii(&MshModel::from_surface(&tri)));
+        let tet = crate::mesh::TetMesh {
+            positions: vec![Vec3::zeros(), Vec3::x(), Vec3::y(), Vec3::z()],
+            tets: vec![[0, 1, 2, 3].map(crate::mesh::VertexId)],
+        };
+        let mut a = Vec::new();
+        write_volume_msh41(&mut a, &tet).unwrap();
+        let text = String::from_utf8(a).unwrap();
+        assert_eq!(section(&text, "Entities")[0], "0 0 0 1");
+        assert_eq!(section(&text, "Elements")[1..], ["3 1 4 1", "1 1 2 3 4"]);
+    }
+
+    #[test]
+    fn binary_data_tags_must_fit_an_int() {
+        let mut m = MshModel::from_surface(&fixtures::square(1));
+        m.node_blocks[0].tags[0] = 1 << 33;
+        m.element_blocks[0].nodes.iter_mut().filter(|n| **n == 1).for_each(|n| *n = 1 << 33);
+        m.node_data.push(DataView { tags: vec![1 << 33], ..DataView::contiguous("f", 1, vec![1.0], 1) });
+        let mut v = Vec::new();
+        write_msh41(&mut v, &m, &Msh41Options::default()).unwrap();
+        assert!(String::from_utf8(v).unwrap().contains("\n8589934592 1.0\n"));
+        let mut v = Vec::new();
+        assert!(matches!(write_msh41(&mut v, &m, &Msh41Options { binary: true }), Err(WriteError::TooLarge { .. })));
         assert!(v.is_empty());
     }
 
