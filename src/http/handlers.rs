@@ -160,7 +160,13 @@ pub async fn submit_job(
         .map(|n| n.rsplit(['/', '\\']).next().unwrap_or(n).chars().take(200).collect::<String>())
         .filter(|n| !n.is_empty())
         .unwrap_or_else(|| "upload".to_string());
-    let new = NewJob { upload_path: up.path.clone(), input_name, input_bytes: up.bytes, format, params };
+    let new = NewJob {
+        upload_path: up.path.clone(),
+        input_name,
+        input_bytes: up.bytes,
+        format: Some(format.extension().to_string()),
+        params,
+    };
     let rec = match st.jobs.submit(new).await {
         Ok(rec) => {
             up.keep();

@@ -22,6 +22,7 @@ use serde::Deserialize;
 use tokio::io::AsyncWriteExt;
 
 use super::error::ApiError;
+use crate::io::Format;
 
 /// Bytes kept from the start of the upload for format sniffing.
 pub const HEAD_BYTES: usize = 4096;
@@ -216,61 +217,48 @@ pub async fn receive_multipart(mut mp: Multipart, path: PathBuf, limit: u64) -> 
     Ok(up)
 }
 
-/// Input format names accepted by `?format=`.
-pub const FORMAT_NAMES: &[&str] = &["stl", "obj", "ply", "msh"];
-
 /// Media types that say nothing about the format (then it is detected).
 fn is_generic_media_type(mt: &str) -> bool {
     matches!(mt, "application/octet-stream" | "text/plain" | "application/x-www-form-urlencoded")
 }
 
 /// The input format from, in order: `?format=`, the Content-Type, the file
-/// name's extension; `None` when the job must detect it.
+/// name's extension, the content (first bytes and total size).
 ///
 /// # Errors
-/// 400 for an unknown `?format=`, 415 for a Content-Type that is not a mesh.
-pub fn resolve_format(explicit: Option<&str>, upload: &Upload) -> Result<Option<String>, ApiError> {
-    if let Some(f) = explicit {
-        let f = f.to_ascii_lowercase();
-        if !FORMAT_NAMES.contains(&f.as_str()) {
-            return Err(ApiError::new(
-                "invalid-query",
-                format!("format `{f}` is not one of {}", FORMAT_NAMES.join(", ")),
-            )
-            .with("field", "format"));
-        }
-        return Ok(Some(f));
+/// 400 for an unknown `?format=`; 415 for a Content-Type that is not a mesh
+/// (`unsupported-media-type`) or content that is no known format
+/// (`unknown-format`).
+pub fn resolve_format(explicit: Option<&str>, upload: &Upload) -> Result<Format, ApiError> {
+    if let Some(name) = explicit {
+        return Format::from_name(name).ok_or_else(|| {
+            let names: Vec<&str> = Format::ALL.iter().map(|f| f.extension()).collect();
+            ApiError::new("invalid-query", format!("format `{name}` is not one of {}", names.join(", ")))
+                .with("field", "format")
+        });
     }
     if let Some(mt) = upload.content_type.as_deref()
         && !is_generic_media_type(mt)
     {
-        let known = match mt {
-            "model/stl"
-            | "application/sla"
-            | "application/vnd.ms-pki.stl"
-            | "model/x.stl-ascii"
-            | "model/x.stl-binary" => Some("stl"),
-            "model/obj" | "text/x-obj" => Some("obj"),
-            "model/ply" | "application/ply" | "text/x-ply" => Some("ply"),
-            "application/x-gmsh" | "model/x-gmsh" => Some("msh"),
-            _ => None,
-        };
-        return match known {
-            Some(f) => Ok(Some(f.to_string())),
-            None => Err(ApiError::new(
+        return Format::from_media_type(mt).ok_or_else(|| {
+            ApiError::new(
                 "unsupported-media-type",
                 format!(
                     "Content-Type `{mt}` is not a mesh format; send model/stl, model/obj, model/ply, \
                      application/x-gmsh or application/octet-stream, or multipart/form-data"
                 ),
-            )),
-        };
+            )
+        });
     }
-    let ext = upload
-        .filename
-        .as_deref()
-        .and_then(|n| Path::new(n).extension())
-        .and_then(|e| e.to_str())
-        .map(str::to_ascii_lowercase);
-    Ok(ext.filter(|e| FORMAT_NAMES.contains(&e.as_str())))
+    let ext = upload.filename.as_deref().and_then(|n| Path::new(n).extension()).and_then(|e| e.to_str());
+    if let Some(f) = ext.and_then(Format::from_extension) {
+        return Ok(f);
+    }
+    Format::sniff(&upload.head, Some(upload.bytes)).ok_or_else(|| {
+        ApiError::new(
+            "unknown-format",
+            "the upload is not recognised as STL, OBJ, PLY or MSH; name the format with ?format= \
+             or a file name extension",
+        )
+    })
 }

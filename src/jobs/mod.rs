@@ -15,6 +15,7 @@
 pub mod executor;
 pub mod metrics;
 pub mod model;
+pub mod pipeline_executor;
 pub mod runner;
 pub mod service;
 pub mod store;

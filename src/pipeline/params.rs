@@ -7,15 +7,20 @@
 
 use serde::{Deserialize, Serialize};
 
+use crate::io::{IoError, LoadOptions};
+
 /// Parameters of one pipeline run.
 ///
 /// Adding a stage adds one [`StageName`] variant and one options field here.
-#[derive(Debug, Clone, Default, PartialEq, Serialize, Deserialize)]
+#[derive(Debug, Clone, Default, Serialize, Deserialize)]
 #[serde(deny_unknown_fields, default)]
 pub struct PipelineParams {
     /// Stages to run after load and repair, in pipeline order whatever the
     /// order given. Default: none (load, repair and write the mesh only).
     pub stages: Vec<StageName>,
+    /// Reading and repair: weld tolerance (relative to the bounding-box
+    /// diagonal, default 1e-6) and triangle cap (default 5e6).
+    pub load: LoadOptions,
 }
 
 /// A computation stage that can follow load and repair.
@@ -117,6 +122,12 @@ pub fn parse_params(json: &[u8]) -> Result<PipelineParams, ParamsError> {
         ParamsError { field, message, syntax }
     })?;
     de.end().map_err(|e| ParamsError { field: None, message: e.to_string(), syntax: true })?;
+    params.load.validate().map_err(|e| match e {
+        IoError::InvalidOptions { option, reason } => {
+            ParamsError { field: Some(format!("load.{option}")), message: reason, syntax: false }
+        }
+        other => ParamsError { field: Some("load".into()), message: other.to_string(), syntax: false },
+    })?;
     Ok(params)
 }
 
@@ -126,8 +137,22 @@ mod tests {
 
     #[test]
     fn empty_object_gives_defaults() {
-        assert_eq!(parse_params(b"{}").unwrap(), PipelineParams::default());
-        assert_eq!(parse_params(b" {\"stages\": []} ").unwrap(), PipelineParams::default());
+        let json = |p: PipelineParams| serde_json::to_value(p).unwrap();
+        assert_eq!(json(parse_params(b"{}").unwrap()), json(PipelineParams::default()));
+        assert_eq!(json(parse_params(b" {\"stages\": []} ").unwrap()), json(PipelineParams::default()));
+        let p = parse_params(br#"{"load": {"max_triangles": 7}}"#).unwrap();
+        assert_eq!((p.load.max_triangles, p.load.weld_tolerance), (7, 1e-6));
+    }
+
+    #[test]
+    fn nested_unknown_fields_and_bad_ranges_are_named() {
+        let e = parse_params(br#"{"load": {"wobble": 1}}"#).unwrap_err();
+        assert_eq!(e.field.as_deref(), Some("load.wobble"), "{e:?}");
+        let e = parse_params(br#"{"load": {"weld_tolerance": 0.5}}"#).unwrap_err();
+        assert_eq!(e.field.as_deref(), Some("load.weld_tolerance"), "{e:?}");
+        assert!(!e.syntax);
+        let e = parse_params(br#"{"load": {"max_triangles": -3}}"#).unwrap_err();
+        assert_eq!(e.field.as_deref(), Some("load.max_triangles"), "{e:?}");
     }
 
     #[test]

@@ -140,10 +140,10 @@ async fn a_full_queue_answers_429_with_retry_after() {
         l.retry_after_secs = 7;
     })
     .await;
-    let a = s.submit_ok("", "application/octet-stream", b"solid a".to_vec()).await;
+    let a = s.submit_ok("?format=stl", "application/octet-stream", b"solid a".to_vec()).await;
     let a_id = a["id"].as_str().unwrap().to_string();
     s.wait_until(&a_id, |j| j["state"] == "running").await;
-    let _b = s.submit_ok("", "application/octet-stream", b"solid b".to_vec()).await;
+    let _b = s.submit_ok("?format=stl", "application/octet-stream", b"solid b".to_vec()).await;
     let r = s.submit_raw("", "application/octet-stream", b"solid c".to_vec()).await;
     let retry = r.headers().get("retry-after").map(|v| v.to_str().unwrap().to_string());
     let body = expect_problem(r, 429, "queue-full").await;
@@ -161,7 +161,7 @@ async fn server_errors_are_generic_and_job_failures_are_problems() {
         Ok(JobOutcome::default())
     });
     let s = Server::start(exec, |_, _| {}).await;
-    let job = s.submit_ok("", "application/octet-stream", b"big".to_vec()).await;
+    let job = s.submit_ok("?format=stl", "application/octet-stream", b"big".to_vec()).await;
     let done = s.wait_final(job["id"].as_str().unwrap()).await;
     assert_eq!(done["state"], "failed");
     assert_eq!(done["error"]["type"], "urn:meshatlas:problem:too-many-triangles");
@@ -169,7 +169,7 @@ async fn server_errors_are_generic_and_job_failures_are_problems() {
     assert_eq!(done["error"]["detail"], "9 triangles, the cap is 4");
     assert!(done["artifacts"].as_array().unwrap().is_empty());
     // An artifact whose file vanished from disk is a server error: generic body.
-    let job = s.submit_ok("", "application/octet-stream", b"ok".to_vec()).await;
+    let job = s.submit_ok("?format=stl", "application/octet-stream", b"ok".to_vec()).await;
     let id = job["id"].as_str().unwrap();
     let done = s.wait_final(id).await;
     assert_eq!(done["state"], "succeeded");

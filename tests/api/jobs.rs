@@ -15,7 +15,8 @@ async fn submit_poll_download_with_range() {
     assert_eq!(job["input"]["name"], "part.stl");
     assert_eq!(job["input"]["bytes"], 10_000);
     assert_eq!(job["input"]["format"], "stl", "format from the file name's extension");
-    assert_eq!(job["params"], serde_json::json!({"stages": []}));
+    assert_eq!(job["params"]["stages"], serde_json::json!([]));
+    assert_eq!(job["params"]["load"]["max_triangles"], 5_000_000, "effective params include defaults");
     let id = job["id"].as_str().unwrap();
     assert_eq!(id.len(), 36);
     let done = s.wait_final(id).await;
@@ -65,7 +66,7 @@ async fn list_is_paginated_newest_first() {
     let s = Server::start(copy_exec(), |_, _| {}).await;
     let mut ids = Vec::new();
     for i in 0..5 {
-        let j = s.submit_ok("", "application/octet-stream", format!("solid {i}").into_bytes()).await;
+        let j = s.submit_ok("?format=stl", "application/octet-stream", format!("solid {i}").into_bytes()).await;
         ids.push(j["id"].as_str().unwrap().to_string());
     }
     let mut seen = Vec::new();
@@ -91,8 +92,8 @@ async fn list_is_paginated_newest_first() {
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
 async fn cancel_and_delete_stop_running_jobs_within_a_second() {
     let s = Server::start(spin_exec(), |c, _| c.workers = 2).await;
-    let a = s.submit_ok("", "application/octet-stream", b"a".to_vec()).await;
-    let b = s.submit_ok("", "application/octet-stream", b"b".to_vec()).await;
+    let a = s.submit_ok("?format=stl", "application/octet-stream", b"a".to_vec()).await;
+    let b = s.submit_ok("?format=stl", "application/octet-stream", b"b".to_vec()).await;
     let (a, b) = (a["id"].as_str().unwrap().to_string(), b["id"].as_str().unwrap().to_string());
     let running = s.wait_until(&a, |j| j["state"] == "running" && j["progress"] == 0.5).await;
     assert_eq!(running["stage"], "spin");
@@ -129,7 +130,7 @@ async fn fifty_concurrent_submissions_all_complete() {
     .await;
     let mut tasks = Vec::new();
     for i in 0..50 {
-        let (client, url) = (s.client.clone(), s.url("/v1/jobs"));
+        let (client, url) = (s.client.clone(), s.url("/v1/jobs?format=stl"));
         tasks.push(tokio::spawn(async move {
             let r = client.post(url).body(format!("solid job{i}\nendsolid\n")).send().await.unwrap();
             assert_eq!(r.status(), 202);

@@ -6,5 +6,8 @@
 
 mod common;
 mod errors;
+mod fixtures;
+mod formats;
 mod jobs;
+mod restart;
 mod spec;
