@@ -97,8 +97,9 @@ impl<E: Executor> Executor for Delayed<E> {
             p.set(start.elapsed().as_secs_f64() / self.delay.as_secs_f64().max(1e-9));
             std::thread::sleep(Duration::from_millis(20).min(self.delay));
         }
+        let waited = start.elapsed().as_secs_f64();
         let mut out = self.inner.execute(job, &progress.sub(0.1, 1.0))?;
-        out.stage_seconds.insert("delay".to_string(), start.elapsed().as_secs_f64().min(self.delay.as_secs_f64()));
+        out.stage_seconds.insert("delay".to_string(), waited);
         Ok(out)
     }
 }
