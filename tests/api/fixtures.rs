@@ -118,3 +118,16 @@ pub fn msh22(m: &TriMesh) -> Vec<u8> {
     s.push_str("$EndElements\n");
     s.into_bytes()
 }
+
+/// MSH 4.1 written by our writer.
+pub fn msh41(m: &TriMesh) -> Vec<u8> {
+    let mut out = Vec::new();
+    meshatlas::io::msh41::write::write_surface_msh41(&mut out, m).unwrap();
+    out
+}
+
+/// A file of the shared test data (`../shared/data/` beside the repository).
+pub fn shared_data(rel: &str) -> std::path::PathBuf {
+    let beside = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("../shared/data").join(rel);
+    if beside.exists() { beside } else { std::path::Path::new("/work/shared/data").join(rel) }
+}

@@ -46,6 +46,7 @@ async fn every_format_runs_and_its_artifacts_read_back() {
         ("ply-ascii", "?format=ply".into(), "application/octet-stream", fixtures::ply_ascii(&m)),
         ("ply-binary", "".into(), "application/octet-stream", fixtures::ply_binary_le(&m)),
         ("msh22", "?filename=s.msh".into(), "application/octet-stream", fixtures::msh22(&m)),
+        ("msh41", "".into(), "application/octet-stream", fixtures::msh41(&m)),
     ];
     let mut jobs = Vec::new();
     for (name, q, ct, body) in cases {
@@ -74,6 +75,26 @@ async fn every_format_runs_and_its_artifacts_read_back() {
         if let Some(n) = meshio_triangles(&vtu) {
             assert_eq!(n, N_TRIANGLES, "{name}: meshio reads mesh.vtu");
         }
+    }
+}
+
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn gmsh_written_parametric_msh41_and_a_corpus_stl_run_like_a_local_load() {
+    let s = Server::start(Arc::new(PipelineExecutor), |_, _| {}).await;
+    for rel in ["gmsh/sphere_tiny_atlas.msh", "corpus/cylinder_coarse.stl"] {
+        let path = fixtures::shared_data(rel);
+        let local = load_path(&path, None, &LoadOptions::default()).unwrap();
+        let name = path.file_name().unwrap().to_string_lossy().into_owned();
+        let form = reqwest::multipart::Form::new()
+            .part("file", reqwest::multipart::Part::bytes(std::fs::read(&path).unwrap()).file_name(name));
+        let r = s.client.post(s.url("/v1/jobs")).multipart(form).send().await.unwrap();
+        assert_eq!(r.status(), 202, "{rel}");
+        let job: Value = r.json().await.unwrap();
+        let done = s.wait_final(job["id"].as_str().unwrap()).await;
+        assert_eq!(done["state"], "succeeded", "{rel}: {done:#}");
+        assert_eq!(done["summary"]["input"]["n_triangles"], local.surface.n_faces(), "{rel}");
+        assert_eq!(done["summary"]["input"]["n_vertices"], local.surface.n_vertices(), "{rel}");
+        assert_eq!(done["summary"]["repair"], serde_json::to_value(&local.repair).unwrap(), "{rel}");
     }
 }
 
