@@ -16,10 +16,10 @@ use super::features::{FeatureCurve, Features, detect_features, edge_chains, mode
 use super::mvc::{MvcSolver, mean_value_parameterization};
 use super::options::AtlasOptions;
 use super::partition::split_patch;
-use super::patch::{PatchDefect, PatchMesh};
+use super::patch::PatchMesh;
 use super::refine::bisect_inner_edges;
-use super::report::{AtlasReport, PatchReport, SplitCounts};
-use super::verify::{check_map, min_and_median, sigma_ratios};
+use super::report::{AtlasReport, PatchReport, SplitCounts, SplitReason};
+use super::verify::{area_distortion, check_map, min_and_median, sigma_ratios};
 use crate::geom::Vec2;
 use crate::mesh::{EdgeId, FaceId, Topology, TriMesh, VertexId};
 use crate::progress::Progress;
@@ -95,12 +95,7 @@ struct DonePatch {
 /// What became of one patch in one generation.
 enum Outcome {
     Done(Box<DonePatch>),
-    Split {
-        pieces: Vec<Vec<FaceId>>,
-        defect: Option<PatchDefect>,
-        map_failed: bool,
-        depth: usize,
-    },
+    Split { pieces: Vec<Vec<FaceId>>, reason: SplitReason, depth: usize },
 }
 
 /// Build the atlas of `mesh` (welded and consistently oriented).
@@ -145,13 +140,8 @@ pub fn build_atlas(
                     n_done += p.input_faces.len();
                     done.push(*p);
                 }
-                Outcome::Split {
-                    pieces,
-                    defect,
-                    map_failed,
-                    depth,
-                } => {
-                    splits.count(defect, map_failed);
+                Outcome::Split { pieces, reason, depth } => {
+                    splits.count(reason);
                     pending.extend(pieces.into_iter().map(|p| (p, depth)));
                 }
             }
@@ -195,8 +185,7 @@ fn process_patch(
         let pieces = split_patch(&patch)?;
         return Ok(Outcome::Split {
             pieces,
-            defect,
-            map_failed: false,
+            reason: defect.map_or(SplitReason::Size, SplitReason::Topology),
             depth,
         });
     }
@@ -251,10 +240,15 @@ fn process_patch(
         let pieces = split_patch(&patch)?;
         return Ok(Outcome::Split {
             pieces,
-            defect: None,
-            map_failed: true,
+            reason: SplitReason::MapFailed,
             depth: depth + 1,
         });
+    }
+    let distortion = area_distortion(&work, &param.uv);
+    if distortion > opts.max_area_distortion && depth < opts.max_split_depth && patch.n_faces() >= 2 {
+        // One-to-one but too compressed somewhere for a mesh generator: split.
+        let pieces = split_patch(&patch)?;
+        return Ok(Outcome::Split { pieces, reason: SplitReason::Distortion, depth: depth + 1 });
     }
     let sigma = sigma_ratios(&work, &param.uv);
     let (sigma_min, sigma_median) = min_and_median(&sigma);
@@ -274,6 +268,7 @@ fn process_patch(
         sigma_ratio_median: sigma_median,
         sigma_ratio_jump_median: sigma_jump_median(&work, &sigma),
         min_relative_uv_area: check.min_relative_area,
+        area_distortion: distortion,
         n_map_splits: depth,
         solver: param.solver,
         krylov_iterations: param.iterations,

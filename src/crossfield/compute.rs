@@ -44,7 +44,7 @@ use std::time::Instant;
 const MIN_ANISOTROPY: f64 = 0.3;
 
 /// Check the options.
-fn validate_options(opts: &CrossfieldOptions) -> Result<(), CrossfieldError> {
+pub fn validate_options(opts: &CrossfieldOptions) -> Result<(), CrossfieldError> {
     let bad = |name, reason: String| Err(CrossfieldError::InvalidOption { name, reason });
     if opts.symmetry != 4 && opts.symmetry != 6 {
         return bad("symmetry", format!("{} (must be 4 or 6)", opts.symmetry));

@@ -21,7 +21,7 @@ pub mod output;
 pub mod singularities;
 pub mod system;
 
-pub use compute::compute_crossfield;
+pub use compute::{compute_crossfield, validate_options};
 pub use output::{write_crossfield_msh, write_crossfield_vtu, write_singularities_json};
 
 use crate::geom::Vec3;

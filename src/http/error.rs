@@ -91,6 +91,8 @@ const KINDS: &[(&str, StatusCode, &str)] = &[
     ("no-triangles", StatusCode::UNPROCESSABLE_ENTITY, "No triangles in the mesh"),
     ("unsupported", StatusCode::UNPROCESSABLE_ENTITY, "Unsupported mesh content"),
     ("stage-failed", StatusCode::UNPROCESSABLE_ENTITY, "A pipeline stage failed on this input"),
+    ("no-valid-map", StatusCode::UNPROCESSABLE_ENTITY, "A patch has no valid one-to-one parameterization"),
+    ("non-orientable-surface", StatusCode::UNPROCESSABLE_ENTITY, "The surface cannot be oriented consistently"),
     ("time-limit-exceeded", StatusCode::UNPROCESSABLE_ENTITY, "Job time limit exceeded"),
     ("interrupted", StatusCode::SERVICE_UNAVAILABLE, "Job interrupted repeatedly"),
     ("internal-error", StatusCode::INTERNAL_SERVER_ERROR, "Internal server error"),

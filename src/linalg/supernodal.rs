@@ -55,7 +55,7 @@ impl SupernodalCholesky {
             },
         )
         .map_err(|e| LinalgError::Internal(format!("{e:?}")))?;
-        let par = faer::get_global_parallelism();
+        let par = faer::Par::Seq;
         let req = symbolic
             .factorize_numeric_llt_scratch::<f64>(par, Default::default())
             .or(symbolic.solve_in_place_scratch::<f64>(1, par));
@@ -81,7 +81,7 @@ impl SupernodalCholesky {
             });
         }
         self.factored = false;
-        let par = faer::get_global_parallelism();
+        let par = faer::Par::Seq;
         self.symbolic
             .factorize_numeric_llt::<f64>(
                 &mut self.l_values,
@@ -113,7 +113,7 @@ impl SupernodalCholesky {
         if !self.factored {
             return Err(LinalgError::Singular { kind: "Cholesky" });
         }
-        let par = faer::get_global_parallelism();
+        let par = faer::Par::Seq;
         let rhs = MatMut::from_column_major_slice_mut(b, n, 1);
         LltRef::new(&self.symbolic, &self.l_values).solve_in_place_with_conj(
             Conj::No,

@@ -22,6 +22,8 @@ pub enum PipelineError {
         stage: &'static str,
         /// What went wrong, in terms of the input.
         message: String,
+        /// Stable failure kind (`stage-failed`, `no-valid-map`, …).
+        kind: &'static str,
     },
     /// An output file could not be written.
     #[error("cannot write {}: {source}", path.display())]
@@ -40,6 +42,11 @@ impl From<Cancelled> for PipelineError {
 }
 
 impl PipelineError {
+    /// A failure of stage `stage` with the stable `kind` and a message for the user.
+    pub fn stage(stage: &'static str, kind: &'static str, message: impl Into<String>) -> Self {
+        PipelineError::Stage { stage, message: message.into(), kind }
+    }
+
     /// Stable machine-readable kind: the reader's kind for load errors
     /// (`parse-error`, `too-many-triangles`, …), `cancelled`, `stage-failed`,
     /// or `write-failed`.
@@ -47,7 +54,7 @@ impl PipelineError {
         match self {
             PipelineError::Load(e) => e.kind(),
             PipelineError::Cancelled => "cancelled",
-            PipelineError::Stage { .. } => "stage-failed",
+            PipelineError::Stage { kind, .. } => kind,
             PipelineError::Write { .. } => "write-failed",
         }
     }

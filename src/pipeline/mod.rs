@@ -14,6 +14,7 @@ pub mod error;
 pub mod params;
 pub mod report;
 pub mod run;
+pub mod stages;
 
 pub use error::PipelineError;
 pub use params::{ParamsError, PipelineParams, StageName, parse_params};

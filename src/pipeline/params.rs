@@ -7,6 +7,8 @@
 
 use serde::{Deserialize, Serialize};
 
+use crate::atlas::{AtlasError, AtlasOptions};
+use crate::crossfield::{CrossfieldError, CrossfieldOptions, validate_options};
 use crate::io::{IoError, LoadOptions};
 
 /// Parameters of one pipeline run.
@@ -21,6 +23,11 @@ pub struct PipelineParams {
     /// Reading and repair: weld tolerance (relative to the bounding-box
     /// diagonal, default 1e-6) and triangle cap (default 5e6).
     pub load: LoadOptions,
+    /// Options of the atlas stage (also the feature angle used by the
+    /// crossfield's alignment constraints).
+    pub atlas: AtlasOptions,
+    /// Options of the crossfield stage.
+    pub crossfield: CrossfieldOptions,
 }
 
 /// A computation stage that can follow load and repair.
@@ -28,18 +35,26 @@ pub struct PipelineParams {
 /// Stages not built into this binary are rejected with a clear error
 /// ([`StageName::PLANNED`] lists the names the API reserves).
 #[derive(Debug, Clone, Copy, PartialEq, Eq, PartialOrd, Ord, Hash)]
-pub enum StageName {}
+pub enum StageName {
+    /// Feature curves, disk-like patches, mean value maps (thesis ch. 2).
+    Atlas,
+    /// Ginzburg–Landau crossfield and its singularities (thesis ch. 3).
+    Crossfield,
+}
 
 impl StageName {
     /// Stages this build can run, in pipeline order.
-    pub const ALL: &'static [StageName] = &[];
+    pub const ALL: &'static [StageName] = &[StageName::Atlas, StageName::Crossfield];
 
     /// Stage names of the API, in pipeline order (some may not be built yet).
     pub const PLANNED: &'static [&'static str] = &["atlas", "crossfield", "frames"];
 
     /// The lowercase name used in JSON, reports and progress.
     pub fn as_str(self) -> &'static str {
-        match self {}
+        match self {
+            StageName::Atlas => "atlas",
+            StageName::Crossfield => "crossfield",
+        }
     }
 
     /// The stage called `name`.
@@ -127,6 +142,18 @@ pub fn parse_params(json: &[u8]) -> Result<PipelineParams, ParamsError> {
             ParamsError { field: Some(format!("load.{option}")), message: reason, syntax: false }
         }
         other => ParamsError { field: Some("load".into()), message: other.to_string(), syntax: false },
+    })?;
+    params.atlas.validate().map_err(|e| match e {
+        AtlasError::InvalidOption { name, reason } => {
+            ParamsError { field: Some(format!("atlas.{name}")), message: reason, syntax: false }
+        }
+        other => ParamsError { field: Some("atlas".into()), message: other.to_string(), syntax: false },
+    })?;
+    validate_options(&params.crossfield).map_err(|e| match e {
+        CrossfieldError::InvalidOption { name, reason } => {
+            ParamsError { field: Some(format!("crossfield.{name}")), message: reason, syntax: false }
+        }
+        other => ParamsError { field: Some("crossfield".into()), message: other.to_string(), syntax: false },
     })?;
     Ok(params)
 }

@@ -52,17 +52,22 @@ pub struct Products {
     pub surface: TriMesh,
     /// The volume mesh, when the input carried one (tetrahedral MSH).
     pub volume: Option<TetMesh>,
+    /// Feature edges of the surface, once a stage has detected them.
+    pub features: Option<crate::atlas::features::Features>,
 }
 
 /// Runs one stage.
 fn run_stage(
     stage: StageName,
-    _params: &PipelineParams,
-    _products: &mut Products,
-    _out_dir: &Path,
-    _progress: &Progress,
+    params: &PipelineParams,
+    products: &mut Products,
+    out_dir: &Path,
+    progress: &Progress,
 ) -> Result<StageOutput, PipelineError> {
-    match stage {}
+    match stage {
+        StageName::Atlas => super::stages::run_atlas(params, products, out_dir, progress),
+        StageName::Crossfield => super::stages::run_crossfield(params, products, out_dir, progress),
+    }
 }
 
 /// Reads `input` without repairing it: the format from `format`, else the
@@ -165,7 +170,7 @@ pub fn run_pipeline(
         n_tets: loaded.volume.as_ref().map(|v| v.tets.len()),
     };
     let repair = loaded.repair;
-    let mut products = Products { surface: loaded.surface, volume: loaded.volume };
+    let mut products = Products { surface: loaded.surface, volume: loaded.volume, features: None };
 
     let mut stages: Vec<StageName> = params.stages.clone();
     stages.sort();

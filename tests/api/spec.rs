@@ -81,3 +81,45 @@ fn every_error_response_is_problem_json_and_every_kind_is_documented() {
     }
     assert!(n >= 20, "found only {n} kinds");
 }
+
+/// Property names of the schema `name` in the spec.
+fn schema_properties(doc: &Yaml, name: &str) -> BTreeSet<String> {
+    doc["components"]["schemas"][name]["properties"]
+        .as_hash()
+        .unwrap_or_else(|| panic!("schema {name} has no properties"))
+        .keys()
+        .map(|k| k.as_str().unwrap().to_string())
+        .collect()
+}
+
+/// Field names of a serialized default value.
+fn fields(value: serde_json::Value) -> BTreeSet<String> {
+    value.as_object().expect("object").keys().cloned().collect()
+}
+
+#[test]
+fn option_schemas_list_exactly_the_option_fields() {
+    let doc = spec();
+    let cases = [
+        ("PipelineParams", fields(serde_json::to_value(meshatlas::pipeline::PipelineParams::default()).unwrap())),
+        ("LoadOptions", fields(serde_json::to_value(meshatlas::io::LoadOptions::default()).unwrap())),
+        ("AtlasOptions", fields(serde_json::to_value(meshatlas::atlas::AtlasOptions::default()).unwrap())),
+        (
+            "CrossfieldOptions",
+            fields(serde_json::to_value(meshatlas::crossfield::CrossfieldOptions::default()).unwrap()),
+        ),
+    ];
+    for (schema, code) in cases {
+        assert_eq!(schema_properties(&doc, schema), code, "schema {schema} (left) differs from the code (right)");
+    }
+    let stages: BTreeSet<String> = doc["components"]["schemas"]["PipelineParams"]["properties"]["stages"]["items"]
+        ["enum"]
+        .as_vec()
+        .unwrap()
+        .iter()
+        .map(|s| s.as_str().unwrap().to_string())
+        .collect();
+    for s in meshatlas::pipeline::StageName::ALL {
+        assert!(stages.contains(s.as_str()), "stage {} missing from the spec", s.as_str());
+    }
+}
