@@ -1,3 +1,5 @@
 //! Element operators shared by the stages: P1 (linear Lagrange) and
 //! Crouzeix–Raviart (edge-midpoint) shape functions on triangles, P1 on
 //! tetrahedra, their stiffness and mass matrices.
+
+pub mod tet_p1;

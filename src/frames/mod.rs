@@ -10,6 +10,12 @@
 //! [`sh4`] (the degree-4 spherical-harmonic 9-vector of Ray et al. 2016 and
 //! Palmer et al. 2020, with projection onto the octahedral variety).
 //!
+//! **Volume and field**: [`bvh`] and [`stuffing`] (isosurface stuffing of
+//! the enclosed volume), [`volume`] (checks, size, quality measures),
+//! [`mbo`] (diffusion–projection smoothing of the 9-vector field),
+//! [`singular`] (holonomy of tet frames around edges), [`field`] (the
+//! stage entry point [`compute_frame_field`], its options and report).
+//!
 //! Conventions used throughout: a frame is given by a *frame quaternion*
 //! `p` (or rotation matrix `R(p)`) whose columns are the frame axes; `p`
 //! and `p o`, `o ∈ O`, are the same frame. Its invariants are (4.23) at
@@ -17,13 +23,23 @@
 //! module docs say so and the tests check the corrected formula.
 
 pub mod axis;
+pub mod bvh;
+pub mod error;
+pub mod field;
 pub mod groups;
 pub mod invariants;
 pub mod inverse;
+pub mod mbo;
 pub mod norm;
 pub mod quaternion;
 pub mod sh4;
+pub mod singular;
+pub mod stuffing;
 pub mod su2;
+pub mod volume;
 
+pub use error::FramesError;
+pub use field::{FrameField, FramesOptions, FramesReport, compute_frame_field};
 pub use quaternion::{Mat3, Quat};
+pub use singular::{SingularEdge, SingularKind};
 pub use su2::{C64, Su2};

@@ -1,0 +1,453 @@
+//! Singular edges of a frame field on a tetrahedral mesh: edges around
+//! which the frame, transported tet to tet, does not come back to itself.
+//!
+//! **Frames per tet.** The per-vertex field is P1 in the 9-vector
+//! representation; the frame of a tet is the projection onto the octahedral
+//! variety of the mean of its 4 vertex 9-vectors (its value at the
+//! barycentre). Singularities of a per-vertex field run through tets and
+//! faces, not along edges; with one frame per tet they lie on primal edges
+//! and the holonomy is well defined (Nieser et al. 2011, Ray et al. 2016,
+//! Liu et al. 2018). A per-vertex "link-cycle" test would flag the edges of
+//! the tets a singular curve crosses, which do not form curves.
+//!
+//! **Matching and holonomy.** Across the face between tets `s` and `t` with
+//! frame quaternions `q_s`, `q_t`, the matching is the element `o ∈ O`
+//! closest to `q_t* q_s` (the cube rotation closest to `R_tᵀ R_s`), found in
+//! O(1) as the largest of `|q_k|`, `(|q_a| + |q_b|)/√2` and `Σ|q_k|/2`.
+//! Around an interior edge `ab` the tets form a ring `T_0, …, T_{k−1}`; the
+//! holonomy `H = o_{k−1} ⋯ o_1 o_0` (in the frame of `T_0`) is exactly an
+//! element of `O`. `H = ±1`: regular. Otherwise `R_0 H R_0ᵀ` is a world
+//! rotation; when it is a quarter turn about the edge direction `ê`
+//! (oriented so that the ring turns positively about it), the edge is the
+//! centre of a 2D cross-section singularity of index `±1/4`: `+π/2` means
+//! index `+1/4`, i.e. **valence 3** (three hexahedra around the edge), `−π/2`
+//! means index `−1/4`, **valence 5**. Other holonomies (half turns, third
+//! turns, or quarter turns about another axis) are reported as *complex*.
+//!
+//! **Curves.** Around an interior vertex the holonomies of its edges
+//! multiply to the identity (the link is a sphere), so a singular edge never
+//! ends alone inside the volume; the report counts the interior vertices
+//! with exactly one singular edge (dangling ends) and isolated singular
+//! edges anyway, as a consistency check.
+
+use super::groups::binary_octahedral_group;
+use super::quaternion::{Mat3, Quat};
+use super::sh4::{dot9, nearest_frame};
+use crate::mesh::TetMesh;
+use rayon::prelude::*;
+use serde::Serialize;
+
+/// Type of a singular edge.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize)]
+#[serde(rename_all = "snake_case")]
+pub enum SingularKind {
+    /// Quarter turn `+π/2` about the edge: index `+1/4`, three hexahedra.
+    Valence3,
+    /// Quarter turn `−π/2` about the edge: index `−1/4`, five hexahedra.
+    Valence5,
+    /// Any other non-identity holonomy.
+    Complex,
+}
+
+impl SingularKind {
+    /// The valence code written to `frames_singular.vtu`: 3, 5, or 0 (complex).
+    pub fn valence_code(&self) -> i32 {
+        match self {
+            SingularKind::Valence3 => 3,
+            SingularKind::Valence5 => 5,
+            SingularKind::Complex => 0,
+        }
+    }
+}
+
+/// A singular edge of the field.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize)]
+pub struct SingularEdge {
+    /// Its vertices (`a < b`).
+    pub vertices: [u32; 2],
+    /// Its type.
+    pub kind: SingularKind,
+    /// Rotation angle of the holonomy, degrees (90, 120 or 180).
+    pub holonomy_angle_deg: f64,
+    /// `|cos|` of the angle between the holonomy axis and the edge.
+    pub axis_alignment: f64,
+}
+
+/// Counts and curve structure of the singular edges.
+#[derive(Debug, Clone, Default, Serialize)]
+pub struct SingularReport {
+    /// Interior edges examined.
+    pub n_interior_edges: usize,
+    /// Singular edges of valence 3.
+    pub n_valence3: usize,
+    /// Singular edges of valence 5.
+    pub n_valence5: usize,
+    /// Other singular edges.
+    pub n_complex: usize,
+    /// Connected singular curves (components of the singular-edge graph).
+    pub n_curves: usize,
+    /// Vertices where three or more singular edges meet.
+    pub n_branch_vertices: usize,
+    /// Interior vertices with exactly one singular edge (should be 0).
+    pub n_dangling_interior_ends: usize,
+    /// Singular edges whose two ends are both dangling (isolated, should be 0).
+    pub n_isolated_edges: usize,
+    /// Edges whose tet ring could not be ordered (non-manifold input).
+    pub n_unordered_rings: usize,
+}
+
+/// Frame per tet: the projection of the mean 9-vector of its vertices,
+/// warm-started at the vertex frame that aligns best with it.
+pub fn tet_frames(mesh: &TetMesh, sh9_per_vertex: &[[f64; 9]], rotation_per_vertex: &[Mat3]) -> Vec<Mat3> {
+    mesh.tets
+        .par_iter()
+        .map(|t| {
+            let mut s = [0.0; 9];
+            for v in t {
+                for c in 0..9 {
+                    s[c] += 0.25 * sh9_per_vertex[v.idx()][c];
+                }
+            }
+            let best = t.iter().max_by(|a, b| dot9(&s, &sh9_per_vertex[a.idx()]).total_cmp(&dot9(&s, &sh9_per_vertex[b.idx()])));
+            let hint = best.map(|v| rotation_per_vertex[v.idx()]);
+            nearest_frame(&s, hint.as_ref(), 0.3).rotation
+        })
+        .collect()
+}
+
+/// The element of the binary octahedral group closest to the unit
+/// quaternion `q` (up to sign), in O(1).
+pub fn nearest_octahedral_element(q: &Quat) -> Quat {
+    let a = q.0.map(f64::abs);
+    let sgn = |x: f64| if x < 0.0 { -1.0 } else { 1.0 };
+    // Sort indices by |q_k| descending.
+    let mut idx = [0usize, 1, 2, 3];
+    idx.sort_by(|&i, &j| a[j].total_cmp(&a[i]));
+    let one = a[idx[0]];
+    let two = (a[idx[0]] + a[idx[1]]) * std::f64::consts::FRAC_1_SQRT_2;
+    let four = 0.5 * (a[0] + a[1] + a[2] + a[3]);
+    let mut o = [0.0; 4];
+    if one >= two && one >= four {
+        o[idx[0]] = sgn(q.0[idx[0]]);
+    } else if two >= four {
+        o[idx[0]] = sgn(q.0[idx[0]]) * std::f64::consts::FRAC_1_SQRT_2;
+        o[idx[1]] = sgn(q.0[idx[1]]) * std::f64::consts::FRAC_1_SQRT_2;
+    } else {
+        for k in 0..4 {
+            o[k] = 0.5 * sgn(q.0[k]);
+        }
+    }
+    Quat(o)
+}
+
+/// Snap a product of group elements back onto the exact element (with sign).
+fn snap(q: &Quat) -> Quat {
+    static GROUP: std::sync::OnceLock<Vec<Quat>> = std::sync::OnceLock::new();
+    let group = GROUP.get_or_init(binary_octahedral_group);
+    *group.iter().max_by(|a, b| a.dot(q).total_cmp(&b.dot(q))).unwrap_or(&Quat::IDENTITY)
+}
+
+/// Intersection of two increasing lists.
+fn sorted_intersection(a: &[u32], b: &[u32]) -> Vec<u32> {
+    let (mut i, mut j) = (0, 0);
+    let mut out = Vec::with_capacity(8);
+    while i < a.len() && j < b.len() {
+        match a[i].cmp(&b[j]) {
+            std::cmp::Ordering::Less => i += 1,
+            std::cmp::Ordering::Greater => j += 1,
+            std::cmp::Ordering::Equal => {
+                out.push(a[i]);
+                i += 1;
+                j += 1;
+            }
+        }
+    }
+    out
+}
+
+/// Singular edges of the field given by one frame per tet, and the report.
+/// `boundary_vertex[v]` tells which vertices lie on the boundary (for the
+/// curve check). `axis_tolerance_deg` is the largest angle between a
+/// quarter-turn holonomy axis and the edge for valence 3/5.
+pub fn singular_edges(mesh: &TetMesh, frame_per_tet: &[Mat3], boundary_vertex: &[bool], axis_tolerance_deg: f64) -> (Vec<SingularEdge>, SingularReport) {
+    let n = mesh.n_vertices();
+    let quats: Vec<Quat> = frame_per_tet.par_iter().map(Quat::from_matrix).collect();
+    // Vertex → tets (CSR).
+    let mut ptr = vec![0usize; n + 1];
+    for t in &mesh.tets {
+        for v in t {
+            ptr[v.idx() + 1] += 1;
+        }
+    }
+    for v in 0..n {
+        ptr[v + 1] += ptr[v];
+    }
+    let mut fill = ptr.clone();
+    let mut vt = vec![0u32; ptr[n]];
+    for (ti, t) in mesh.tets.iter().enumerate() {
+        for v in t {
+            vt[fill[v.idx()]] = ti as u32;
+            fill[v.idx()] += 1;
+        }
+    }
+    let edges = crate::fem::tet_p1::tet_mesh_edges(mesh);
+    let cos_tol = axis_tolerance_deg.to_radians().cos();
+    // Per edge: None (boundary / regular), Some(Ok(edge)) singular, Some(Err(())) unordered.
+    let results: Vec<(bool, Option<Result<SingularEdge, ()>>)> = edges
+        .par_iter()
+        .map(|&[a, b]| {
+            let (ta, tb) = (&vt[ptr[a as usize]..ptr[a as usize + 1]], &vt[ptr[b as usize]..ptr[b as usize + 1]]);
+            let ring = sorted_intersection(ta, tb);
+            let link: Vec<[u32; 2]> = ring
+                .iter()
+                .map(|&t| {
+                    let mut o = [u32::MAX; 2];
+                    let mut k = 0;
+                    for v in &mesh.tets[t as usize] {
+                        if v.0 != a && v.0 != b && k < 2 {
+                            o[k] = v.0;
+                            k += 1;
+                        }
+                    }
+                    o
+                })
+                .collect();
+            match order_ring(&link) {
+                RingOrder::Open => (false, None),
+                RingOrder::Invalid => (true, Some(Err(()))),
+                RingOrder::Closed(order) => {
+                    let h = ring_holonomy(&order, &ring, &quats);
+                    let angle = 2.0 * h.vector().norm().atan2(h.scalar().abs());
+                    if angle < 0.1 {
+                        return (true, None);
+                    }
+                    // Loop orientation: sign of vol(a, b, c0, c1).
+                    let (pa, pb) = (mesh.positions[a as usize], mesh.positions[b as usize]);
+                    let [c0, c1] = link[order[0].0];
+                    let (c0, c1) = if order[0].1 { (c1, c0) } else { (c0, c1) };
+                    let e = pb - pa;
+                    let turn = e.dot(&(mesh.positions[c0 as usize] - pa).cross(&(mesh.positions[c1 as usize] - pa)));
+                    let e_loop = if turn >= 0.0 { e.normalize() } else { -e.normalize() };
+                    // World axis of the holonomy (rotation by `angle` about it).
+                    let h = if h.scalar() < 0.0 { h.neg() } else { h };
+                    let axis_local = h.vector().normalize();
+                    let axis = frame_per_tet[ring[order[0].0] as usize] * axis_local;
+                    let align = axis.dot(&e_loop);
+                    let quarter = (angle - std::f64::consts::FRAC_PI_2).abs() < 0.1;
+                    let kind = if quarter && align >= cos_tol {
+                        SingularKind::Valence3
+                    } else if quarter && align <= -cos_tol {
+                        SingularKind::Valence5
+                    } else {
+                        SingularKind::Complex
+                    };
+                    (true, Some(Ok(SingularEdge { vertices: [a, b], kind, holonomy_angle_deg: angle.to_degrees(), axis_alignment: align.abs() })))
+                }
+            }
+        })
+        .collect();
+    let mut report = SingularReport::default();
+    let mut out = Vec::new();
+    for (interior, r) in results {
+        report.n_interior_edges += interior as usize;
+        match r {
+            Some(Ok(e)) => {
+                match e.kind {
+                    SingularKind::Valence3 => report.n_valence3 += 1,
+                    SingularKind::Valence5 => report.n_valence5 += 1,
+                    SingularKind::Complex => report.n_complex += 1,
+                }
+                out.push(e);
+            }
+            Some(Err(())) => report.n_unordered_rings += 1,
+            None => {}
+        }
+    }
+    curve_structure(&out, boundary_vertex, &mut report);
+    (out, report)
+}
+
+enum RingOrder {
+    /// Tets in cyclic order: (index into the ring, link pair reversed?).
+    Closed(Vec<(usize, bool)>),
+    /// The link is a path: the edge is on the boundary.
+    Open,
+    /// Not a simple path or cycle.
+    Invalid,
+}
+
+/// Order the tets around an edge from their link pairs `[c, d]`.
+fn order_ring(link: &[[u32; 2]]) -> RingOrder {
+    let k = link.len();
+    if k == 0 {
+        return RingOrder::Invalid;
+    }
+    // Every link vertex must appear at most twice.
+    let count = |x: u32| link.iter().filter(|p| p[0] == x || p[1] == x).count();
+    let mut start = 0;
+    let mut open = false;
+    for (i, p) in link.iter().enumerate() {
+        for &x in p {
+            match count(x) {
+                1 => {
+                    open = true;
+                    start = i;
+                }
+                2 => {}
+                _ => return RingOrder::Invalid,
+            }
+        }
+    }
+    if open {
+        return RingOrder::Open;
+    }
+    let mut order = vec![(start, false)];
+    let mut used = vec![false; k];
+    used[start] = true;
+    let first = link[start][0];
+    let mut cur = link[start][1];
+    while cur != first {
+        let Some(next) = (0..k).find(|&i| !used[i] && (link[i][0] == cur || link[i][1] == cur)) else {
+            return RingOrder::Invalid;
+        };
+        used[next] = true;
+        let rev = link[next][1] == cur;
+        order.push((next, rev));
+        cur = if rev { link[next][0] } else { link[next][1] };
+    }
+    if order.len() != k {
+        return RingOrder::Invalid;
+    }
+    RingOrder::Closed(order)
+}
+
+/// `H = o_{k−1} ⋯ o_0` with `o_i` the matching from tet `i` to tet `i+1`.
+fn ring_holonomy(order: &[(usize, bool)], ring: &[u32], quats: &[Quat]) -> Quat {
+    let k = order.len();
+    let mut h = Quat::IDENTITY;
+    for i in 0..k {
+        let s = quats[ring[order[i].0] as usize];
+        let t = quats[ring[order[(i + 1) % k].0] as usize];
+        let o = nearest_octahedral_element(&t.conj().mul(&s));
+        h = snap(&o.mul(&h));
+    }
+    h
+}
+
+/// Fill the curve counts of `report` from the singular edges.
+fn curve_structure(edges: &[SingularEdge], boundary_vertex: &[bool], report: &mut SingularReport) {
+    use std::collections::HashMap;
+    let mut degree: HashMap<u32, usize> = HashMap::new();
+    for e in edges {
+        for v in e.vertices {
+            *degree.entry(v).or_default() += 1;
+        }
+    }
+    let dangling = |v: u32| degree.get(&v) == Some(&1) && !boundary_vertex.get(v as usize).copied().unwrap_or(false);
+    report.n_dangling_interior_ends = degree.keys().filter(|&&v| dangling(v)).count();
+    report.n_branch_vertices = degree.values().filter(|&&d| d >= 3).count();
+    report.n_isolated_edges = edges.iter().filter(|e| degree[&e.vertices[0]] == 1 && degree[&e.vertices[1]] == 1).count();
+    // Components by union-find over vertices.
+    let mut ids: Vec<u32> = degree.keys().copied().collect();
+    ids.sort_unstable();
+    let index: HashMap<u32, u32> = ids.iter().enumerate().map(|(i, &v)| (v, i as u32)).collect();
+    let mut sets = crate::mesh::components::DisjointSets::new(ids.len());
+    for e in edges {
+        sets.union(index[&e.vertices[0]], index[&e.vertices[1]]);
+    }
+    report.n_curves = sets.labels().1;
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn nearest_element_is_the_best_of_the_48() {
+        use rand::rngs::StdRng;
+        use rand::{Rng, SeedableRng};
+        let mut rng = StdRng::seed_from_u64(71);
+        let group = binary_octahedral_group();
+        for _ in 0..500 {
+            let q = Quat::new(rng.random_range(-1.0..1.0), rng.random_range(-1.0..1.0), rng.random_range(-1.0..1.0), rng.random_range(-1.0..1.0)).normalized();
+            let o = nearest_octahedral_element(&q);
+            let best = group.iter().map(|g| g.dot(&q).abs()).fold(0.0, f64::max);
+            assert!((o.dot(&q).abs() - best).abs() < 1e-14);
+            assert!(group.iter().any(|g| (0..4).all(|k| (g.0[k] - o.0[k]).abs() < 1e-15)));
+        }
+    }
+
+    /// Kuhn (Freudenthal) tetrahedralization of the box
+    /// `[−n, n]² × [0, m]` with unit cubes, 6 tets per cube.
+    pub(crate) fn kuhn_box(n: i64, m: i64) -> TetMesh {
+        let w = (2 * n + 1) as usize;
+        let id = |i: i64, j: i64, k: i64| ((i + n) as usize + w * ((j + n) as usize + w * k as usize)) as u32;
+        let mut positions = Vec::new();
+        for k in 0..=m {
+            for j in -n..=n {
+                for i in -n..=n {
+                    positions.push(crate::geom::Vec3::new(i as f64, j as f64, k as f64));
+                }
+            }
+        }
+        let mut tets = Vec::new();
+        for k in 0..m {
+            for j in -n..n {
+                for i in -n..n {
+                    let v = |a: i64, b: i64, c: i64| crate::mesh::VertexId(id(i + a, j + b, k + c));
+                    let (v000, v111) = (v(0, 0, 0), v(1, 1, 1));
+                    let ring = [v(1, 0, 0), v(1, 1, 0), v(0, 1, 0), v(0, 1, 1), v(0, 0, 1), v(1, 0, 1)];
+                    for r in 0..6 {
+                        tets.push([v000, ring[r], ring[(r + 1) % 6], v111]);
+                    }
+                }
+            }
+        }
+        let mut mesh = TetMesh { positions, tets };
+        mesh.orient_positive();
+        mesh
+    }
+
+    #[test]
+    fn quarter_turn_fields_give_valence_3_and_5_on_the_axis() {
+        let mesh = kuhn_box(3, 3);
+        assert!(mesh.validate().is_ok());
+        let boundary = crate::frames::volume::boundary_vertices(&mesh);
+        for (sign, expected) in [(1.0, SingularKind::Valence3), (-1.0, SingularKind::Valence5)] {
+            let frames: Vec<Mat3> = mesh
+                .tets
+                .iter()
+                .map(|t| {
+                    let c = t.iter().map(|v| mesh.positions[v.idx()]).sum::<crate::geom::Vec3>() / 4.0;
+                    let phi = c.y.atan2(c.x);
+                    // An arbitrary octahedral relabelling per tet must not matter.
+                    let o = crate::frames::groups::cube_rotations()[(t[0].0 as usize * 7 + t[3].0 as usize) % 24];
+                    super::super::quaternion::rotation_from_vector(&(crate::geom::Vec3::z() * (sign * phi / 4.0))) * o
+                })
+                .collect();
+            let (edges, report) = singular_edges(&mesh, &frames, &boundary, 30.0);
+            assert_eq!(edges.len(), 3, "{edges:?}");
+            for e in &edges {
+                let [a, b] = e.vertices.map(|v| mesh.positions[v as usize]);
+                assert!(a.x == 0.0 && a.y == 0.0 && b.x == 0.0 && b.y == 0.0, "{e:?}");
+                assert_eq!(e.kind, expected);
+                assert!((e.holonomy_angle_deg - 90.0).abs() < 1e-9 && e.axis_alignment > 0.999);
+            }
+            assert_eq!((report.n_curves, report.n_dangling_interior_ends, report.n_isolated_edges), (1, 0, 0));
+        }
+        // A smooth field has no singular edge.
+        let frames: Vec<Mat3> = mesh.tets.iter().map(|_| Mat3::identity()).collect();
+        assert!(singular_edges(&mesh, &frames, &boundary, 30.0).0.is_empty());
+    }
+
+    #[test]
+    fn rings_are_ordered_or_recognized_as_open() {
+        let closed = [[1, 2], [3, 4], [2, 3], [4, 1]];
+        match order_ring(&closed) {
+            RingOrder::Closed(o) => assert_eq!(o.len(), 4),
+            _ => panic!("closed ring not recognized"),
+        }
+        assert!(matches!(order_ring(&[[1, 2], [2, 3]]), RingOrder::Open));
+        assert!(matches!(order_ring(&[[1, 2], [1, 3], [1, 4]]), RingOrder::Invalid));
+    }
+}
