@@ -7,7 +7,8 @@
 //! Default targets: 100000 1000000. The lattice spacing is chosen from the
 //! estimate `12 V / h³` tetrahedra. Peak memory is `VmHWM` of
 //! `/proc/self/status` (Linux), so run one target per process to measure
-//! each one's peak (`-- 1000000`).
+//! each one's peak (`-- 1000000`). `FRAMES_SOLVER=cholesky` or `pcg` forces
+//! the linear solver.
 
 use meshatlas::frames::{FramesOptions, compute_frame_field};
 use meshatlas::mesh::fixtures;
@@ -30,7 +31,9 @@ fn main() {
     println!("rayon threads: {}", rayon::current_num_threads());
     for n in targets {
         let h = (12.0 * volume / n).cbrt();
-        let opts = FramesOptions { target_size: Some(h), max_tets: (2.0 * n) as usize, ..Default::default() };
+        // FRAMES_SOLVER=cholesky|pcg forces the linear solver (default: automatic).
+        let linear_solver = std::env::var("FRAMES_SOLVER").ok().and_then(|s| serde_json::from_str(&format!("\"{s}\"")).ok());
+        let opts = FramesOptions { target_size: Some(h), max_tets: (2.0 * n) as usize, linear_solver, ..Default::default() };
         let t = Instant::now();
         let field = match compute_frame_field(&sphere, None, &opts, &Progress::none()) {
             Ok(f) => f,
@@ -51,12 +54,12 @@ fn main() {
         );
         let s = &r.seconds;
         println!(
-            "  volume {:.2} s, constraints {:.2}, operators {:.2}, field {:.2} (factor {:.2}, solve {:.2}, project {:.2}), invariants {:.2}, singular {:.2}",
-            s.volume, s.constraints, s.operators, s.field, s.factor, s.solve, s.project, s.invariants, s.singular
+            "  volume {:.2} s, constraints {:.2}, operators {:.2}, field {:.2} (factor {:.2}, solve {:.2}, project {:.2}), invariants {:.2}, tet frames {:.2}, singular {:.2}",
+            s.volume, s.constraints, s.operators, s.field, s.factor, s.solve, s.project, s.invariants, s.tet_frames, s.singular
         );
         println!(
-            "  {} levels, {} steps, energy {:.4} -> {:.4}; singular: {} valence 3, {} valence 5, {} complex, {} curves, {} dangling; min dihedral {:.1} deg",
-            r.levels, r.iterations, r.energy_before, r.energy_after, r.singular.n_valence3, r.singular.n_valence5, r.singular.n_complex,
+            "  {:?}, {} PCG iterations, {} levels, {} steps, energy {:.4} -> {:.4}; singular: {} valence 3, {} valence 5, {} complex, {} curves, {} dangling; min dihedral {:.1} deg",
+            r.linear_solver, r.pcg_iterations, r.levels, r.iterations, r.energy_before, r.energy_after, r.singular.n_valence3, r.singular.n_valence5, r.singular.n_complex,
             r.singular.n_curves, r.singular.n_dangling_interior_ends, r.volume.min_dihedral_deg
         );
     }

@@ -129,6 +129,20 @@ fn ball_has_singular_curves_ending_on_the_boundary() {
 }
 
 #[test]
+fn direct_and_iterative_solvers_give_the_same_field() {
+    use meshatlas::frames::mbo::LinearSolverKind;
+    let sphere = fixtures::icosphere(2);
+    let run = |kind| {
+        let opts = FramesOptions { target_size: Some(0.25), linear_solver: Some(kind), pcg_tolerance: 1e-10, ..Default::default() };
+        compute_frame_field(&sphere, None, &opts, &Progress::none()).unwrap()
+    };
+    let (a, b) = (run(LinearSolverKind::Cholesky), run(LinearSolverKind::Pcg));
+    assert!(b.report.pcg_iterations > 0 && a.report.pcg_iterations == 0);
+    assert!((a.report.energy_after - b.report.energy_after).abs() < 1e-6 * a.report.energy_after, "{} vs {}", a.report.energy_after, b.report.energy_after);
+    assert_eq!(a.singular_edges.len(), b.singular_edges.len());
+}
+
+#[test]
 fn open_surface_fails_with_its_loops() {
     let err = compute_frame_field(&fixtures::cylinder(1.0, 1.0, 12, 3), None, &FramesOptions::default(), &Progress::none()).unwrap_err();
     match &err {

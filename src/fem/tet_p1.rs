@@ -124,6 +124,11 @@ impl TetP1Operators {
         self.col_ptr[j]
     }
 
+    /// The lower-triangle pattern `(col_ptr, row_idx)` shared by all matrices.
+    pub fn pattern(&self) -> (&[usize], &[usize]) {
+        (&self.col_ptr, &self.row_idx)
+    }
+
     /// Number of stored (lower-triangle) entries.
     pub fn n_stored(&self) -> usize {
         self.row_idx.len()

@@ -40,9 +40,10 @@
 
 use super::error::FramesError;
 use super::quaternion::Mat3;
-use super::sh4::{Projection, dot9, nearest_frame, nearest_normal_aligned_frame, sh9_from_rotation};
+use super::sh4::{Projection, dot9, nearest_frame_to_tolerance, nearest_normal_aligned_frame, sh9_from_rotation};
 use crate::fem::tet_p1::TetP1Operators;
 use crate::geom::Vec3;
+use super::pcg::{SymmetricCsr, pcg9};
 use crate::linalg::CholeskySolver;
 use crate::progress::Progress;
 use rayon::prelude::*;
@@ -86,6 +87,10 @@ pub struct MboParams {
     /// update them afterwards by their exact local minimizer; otherwise
     /// diffuse with natural boundary conditions and project them.
     pub dirichlet_diffusion: bool,
+    /// Linear solver for the diffusions.
+    pub solver: LinearSolverKind,
+    /// Relative residual at which PCG stops.
+    pub pcg_tolerance: f64,
 }
 
 /// One diffuse–project step in the energy history.
@@ -112,8 +117,11 @@ pub struct MboResult {
     pub energy_final: f64,
     /// One record per step.
     pub history: Vec<EnergyRecord>,
-    /// Numeric factorizations (one per `τ`).
+    /// Matrices set up (numeric factorizations with Cholesky): one per `τ`,
+    /// plus one for the harmonic start.
     pub n_factorizations: usize,
+    /// Conjugate-gradient iterations in total (PCG solver).
+    pub pcg_iterations: usize,
     /// Wall time in factorizations, seconds.
     pub factor_seconds: f64,
     /// Wall time in the triangular solves, seconds.
@@ -130,7 +138,7 @@ pub fn field_energy(ops: &TetP1Operators, columns: &[Vec<f64>]) -> f64 {
 /// Project `x` onto the set allowed by `constraint`, warm-started at `current`.
 pub fn project_vertex(x: &[f64; 9], constraint: &VertexConstraint, current: &Mat3, accept: f64) -> Projection {
     match constraint {
-        VertexConstraint::Free => nearest_frame(x, Some(current), accept),
+        VertexConstraint::Free => nearest_frame_to_tolerance(x, Some(current), accept, 1e-9),
         VertexConstraint::Normal(n) => nearest_normal_aligned_frame(x, n).0,
         VertexConstraint::Fixed(r) => {
             let s = sh9_from_rotation(r);
@@ -173,14 +181,14 @@ pub fn smooth_octahedral_field(
     let penalty: Vec<f64> = constraints.iter().map(|c| if matches!(c, VertexConstraint::Free) { 0.0 } else { 1e8 * kmax.max(1e-300) }).collect();
     let has_constraints = penalty.iter().any(|p| *p > 0.0);
     let has_free = penalty.iter().any(|p| *p == 0.0);
-    let mut solver: Option<CholeskySolver> = None;
+    let mut diffuser = Diffuser::new(params.solver, params.pcg_tolerance);
     let mut n_factorizations = 0;
 
     if params.harmonic_start && has_constraints && has_free {
         let a = ops.combination(0.0, 1.0, Some(&penalty));
-        factor(&mut solver, &a, &mut timer)?;
+        diffuser.set_matrix(ops, &a, &mut timer)?;
         n_factorizations += 1;
-        let x = diffuse(ops, solver.as_ref(), &state.columns, 1.0, &mut timer)?;
+        let x = diffuser.diffuse(ops, &state.columns, 1.0, &mut timer)?;
         state.project_free(&x, constraints, params.projection_accept, &mut timer);
         history.push(EnergyRecord { tau: 0.0, energy: field_energy(ops, &state.columns), max_change: f64::NAN });
         progress.check()?;
@@ -199,11 +207,11 @@ pub fn smooth_octahedral_field(
     for (li, &tau) in levels.iter().enumerate() {
         progress.check()?;
         let a = ops.combination(1.0, tau, if dirichlet { Some(&penalty) } else { None });
-        factor(&mut solver, &a, &mut timer)?;
+        diffuser.set_matrix(ops, &a, &mut timer)?;
         n_factorizations += 1;
         for step in 0..params.max_steps_per_level {
             progress.check()?;
-            let x = diffuse(ops, solver.as_ref(), &state.columns, tau, &mut timer)?;
+            let x = diffuser.diffuse(ops, &state.columns, tau, &mut timer)?;
             let old = state.columns.clone();
             if dirichlet {
                 // Interior: project the diffused values; boundary: the best
@@ -238,6 +246,7 @@ pub fn smooth_octahedral_field(
         energy_final,
         history,
         n_factorizations,
+        pcg_iterations: diffuser.pcg_iterations(),
         factor_seconds: timer.factor,
         solve_seconds: timer.solve,
         project_seconds: timer.project,
@@ -251,45 +260,101 @@ struct Timers {
     project: f64,
 }
 
-/// Factor `a`, reusing the symbolic analysis of an earlier factorization.
-fn factor(solver: &mut Option<CholeskySolver>, a: &crate::linalg::SparseMatrix, timer: &mut Timers) -> Result<(), FramesError> {
-    let t = Instant::now();
-    match solver.as_mut() {
-        None => *solver = Some(CholeskySolver::new(a)?),
-        Some(s) => s.refactor(a)?,
-    }
-    timer.factor += t.elapsed().as_secs_f64();
-    Ok(())
+/// Which linear solver diffuses the field.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, serde::Serialize, serde::Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum LinearSolverKind {
+    /// Sparse Cholesky (faer, AMD ordering), one numeric factorization per
+    /// matrix, symbolic analysis shared ([`CholeskySolver::refactor`]).
+    Cholesky,
+    /// Jacobi-preconditioned conjugate gradients ([`super::pcg`]).
+    Pcg,
 }
 
-/// One diffusion of the 9 components from `s`, in defect form: with the
-/// factored `A = αM + τK (+ P)`, solve `A d = −τ K s` and return `s + d`.
-/// This is `A x = αM s (+ P s)`, i.e. `(M + τK) x = M s` (MBO step, `α = 1`)
-/// or the Dirichlet problem `(K + P) x = P s` (`α = 0`, `τ = 1`), but the
-/// right-hand side vanishes for a smooth field, so the penalty's
-/// conditioning does not pollute an already harmonic (e.g. constant) field.
-fn diffuse(ops: &TetP1Operators, solver: Option<&CholeskySolver>, columns: &[Vec<f64>], tau: f64, timer: &mut Timers) -> Result<Vec<Vec<f64>>, FramesError> {
-    let t = Instant::now();
-    let n = ops.n_vertices;
-    let mut rhs: Vec<Vec<f64>> = columns
-        .par_iter()
-        .map(|c| {
-            let mut y = vec![0.0; n];
-            ops.apply_stiffness(c, &mut y);
-            y.iter_mut().for_each(|v| *v *= -tau);
-            y
-        })
-        .collect();
-    if let Some(s) = solver {
-        s.solve_columns(&mut rhs)?;
-    }
-    for (d, c) in rhs.iter_mut().zip(columns) {
-        for (dv, cv) in d.iter_mut().zip(c) {
-            *dv += cv;
+/// The linear solver for the current matrix.
+enum Diffuser {
+    Direct(Option<CholeskySolver>),
+    Iterative { csr: Option<SymmetricCsr>, tolerance: f64, iterations: usize },
+}
+
+impl Diffuser {
+    fn new(kind: LinearSolverKind, tolerance: f64) -> Self {
+        match kind {
+            LinearSolverKind::Cholesky => Diffuser::Direct(None),
+            LinearSolverKind::Pcg => Diffuser::Iterative { csr: None, tolerance, iterations: 0 },
         }
     }
-    timer.solve += t.elapsed().as_secs_f64();
-    Ok(rhs)
+
+    /// Make `a` the current matrix: factor it (reusing the symbolic
+    /// analysis) or load its values.
+    fn set_matrix(&mut self, ops: &TetP1Operators, a: &crate::linalg::SparseMatrix, timer: &mut Timers) -> Result<(), FramesError> {
+        let t = Instant::now();
+        match self {
+            Diffuser::Direct(solver) => match solver.as_mut() {
+                None => *solver = Some(CholeskySolver::new(a)?),
+                Some(s) => s.refactor(a)?,
+            },
+            Diffuser::Iterative { csr, .. } => {
+                let m = csr.get_or_insert_with(|| {
+                    let (cp, ri) = ops.pattern();
+                    SymmetricCsr::from_lower_pattern(cp, ri)
+                });
+                m.set_values(a.parts().1);
+            }
+        }
+        timer.factor += t.elapsed().as_secs_f64();
+        Ok(())
+    }
+
+    /// One diffusion of the 9 components from `s`, in defect form: with the
+    /// current `A = αM + τK (+ P)`, solve `A d = −τ K s` and return `s + d`.
+    /// This is `A x = αM s (+ P s)`, i.e. `(M + τK) x = M s` (MBO step,
+    /// `α = 1`) or the Dirichlet problem `(K + P) x = P s` (`α = 0`,
+    /// `τ = 1`), but the right-hand side vanishes for a smooth field, so the
+    /// penalty's conditioning does not pollute an already harmonic (e.g.
+    /// constant) field, and an iterative solve starts from the right scale.
+    fn diffuse(&mut self, ops: &TetP1Operators, columns: &[Vec<f64>], tau: f64, timer: &mut Timers) -> Result<Vec<Vec<f64>>, FramesError> {
+        let t = Instant::now();
+        let n = ops.n_vertices;
+        let mut rhs: Vec<Vec<f64>> = columns
+            .par_iter()
+            .map(|c| {
+                let mut y = vec![0.0; n];
+                ops.apply_stiffness(c, &mut y);
+                y.iter_mut().for_each(|v| *v *= -tau);
+                y
+            })
+            .collect();
+        match self {
+            Diffuser::Direct(Some(s)) => s.solve_columns(&mut rhs)?,
+            Diffuser::Iterative { csr: Some(m), tolerance, iterations } => {
+                let b: Vec<[f64; 9]> = (0..n).into_par_iter().map(|v| std::array::from_fn(|c| rhs[c][v])).collect();
+                let mut d = vec![[0.0; 9]; n];
+                let out = pcg9(m, &b, &mut d, *tolerance, 20 * n.max(100));
+                *iterations += out.iterations;
+                rhs.par_iter_mut().enumerate().for_each(|(c, col)| {
+                    for (v, x) in col.iter_mut().enumerate() {
+                        *x = d[v][c];
+                    }
+                });
+            }
+            _ => {}
+        }
+        for (d, c) in rhs.iter_mut().zip(columns) {
+            for (dv, cv) in d.iter_mut().zip(c) {
+                *dv += cv;
+            }
+        }
+        timer.solve += t.elapsed().as_secs_f64();
+        Ok(rhs)
+    }
+
+    fn pcg_iterations(&self) -> usize {
+        match self {
+            Diffuser::Iterative { iterations, .. } => *iterations,
+            Diffuser::Direct(_) => 0,
+        }
+    }
 }
 
 /// The field during the iteration: frame and 9-vector (by component) per vertex.

@@ -31,6 +31,7 @@ pub mod invariants;
 pub mod inverse;
 pub mod mbo;
 pub mod norm;
+pub mod pcg;
 pub mod quaternion;
 pub mod sh4;
 pub mod singular;

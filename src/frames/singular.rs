@@ -32,7 +32,7 @@
 
 use super::groups::binary_octahedral_group;
 use super::quaternion::{Mat3, Quat};
-use super::sh4::{dot9, nearest_frame};
+use super::sh4::{dot9, nearest_frame_to_tolerance};
 use crate::mesh::TetMesh;
 use rayon::prelude::*;
 use serde::Serialize;
@@ -110,7 +110,7 @@ pub fn tet_frames(mesh: &TetMesh, sh9_per_vertex: &[[f64; 9]], rotation_per_vert
             }
             let best = t.iter().max_by(|a, b| dot9(&s, &sh9_per_vertex[a.idx()]).total_cmp(&dot9(&s, &sh9_per_vertex[b.idx()])));
             let hint = best.map(|v| rotation_per_vertex[v.idx()]);
-            nearest_frame(&s, hint.as_ref(), 0.3).rotation
+            nearest_frame_to_tolerance(&s, hint.as_ref(), 0.3, 1e-9).rotation
         })
         .collect()
 }
@@ -118,51 +118,61 @@ pub fn tet_frames(mesh: &TetMesh, sh9_per_vertex: &[[f64; 9]], rotation_per_vert
 /// The element of the binary octahedral group closest to the unit
 /// quaternion `q` (up to sign), in O(1).
 pub fn nearest_octahedral_element(q: &Quat) -> Quat {
+    octa_group().elements[nearest_octahedral_index(q) as usize]
+}
+
+/// Index in [`binary_octahedral_group`] of the element closest to `q`
+/// (with the sign of `q`): the largest of `|q_k|` (elements `±1, ±i, ±j,
+/// ±k`), `(|q_a| + |q_b|)/√2` (the 24 `(±e_a ± e_b)/√2`) and `Σ|q_k|/2`
+/// (the 16 `(±1 ± i ± j ± k)/2`). The arithmetic follows the order in
+/// which the group is listed.
+pub fn nearest_octahedral_index(q: &Quat) -> u8 {
     let a = q.0.map(f64::abs);
-    let sgn = |x: f64| if x < 0.0 { -1.0 } else { 1.0 };
-    // Sort indices by |q_k| descending.
+    let neg = |x: f64| x < 0.0;
     let mut idx = [0usize, 1, 2, 3];
     idx.sort_by(|&i, &j| a[j].total_cmp(&a[i]));
     let one = a[idx[0]];
     let two = (a[idx[0]] + a[idx[1]]) * std::f64::consts::FRAC_1_SQRT_2;
     let four = 0.5 * (a[0] + a[1] + a[2] + a[3]);
-    let mut o = [0.0; 4];
     if one >= two && one >= four {
-        o[idx[0]] = sgn(q.0[idx[0]]);
+        (2 * idx[0] + neg(q.0[idx[0]]) as usize) as u8
     } else if two >= four {
-        o[idx[0]] = sgn(q.0[idx[0]]) * std::f64::consts::FRAC_1_SQRT_2;
-        o[idx[1]] = sgn(q.0[idx[1]]) * std::f64::consts::FRAC_1_SQRT_2;
+        let (p0, p1) = (idx[0].min(idx[1]), idx[0].max(idx[1]));
+        const PAIRS: [(usize, usize); 6] = [(0, 1), (0, 2), (0, 3), (1, 2), (1, 3), (2, 3)];
+        let pair = PAIRS.iter().position(|&p| p == (p0, p1)).unwrap_or(0);
+        let signs = 2 * neg(q.0[p0]) as usize + neg(q.0[p1]) as usize;
+        (24 + 4 * pair + signs) as u8
     } else {
-        for k in 0..4 {
-            o[k] = 0.5 * sgn(q.0[k]);
-        }
+        let bits = (0..4).map(|k| (neg(q.0[k]) as usize) << k).sum::<usize>();
+        (8 + bits) as u8
     }
-    Quat(o)
 }
 
-/// Snap a product of group elements back onto the exact element (with sign).
-fn snap(q: &Quat) -> Quat {
-    static GROUP: std::sync::OnceLock<Vec<Quat>> = std::sync::OnceLock::new();
-    let group = GROUP.get_or_init(binary_octahedral_group);
-    *group.iter().max_by(|a, b| a.dot(q).total_cmp(&b.dot(q))).unwrap_or(&Quat::IDENTITY)
+/// The binary octahedral group with its multiplication table.
+struct OctaGroup {
+    elements: Vec<Quat>,
+    /// `mul[a][b]` is the index of `elements[a] · elements[b]`.
+    mul: Vec<[u8; 48]>,
 }
 
-/// Intersection of two increasing lists.
-fn sorted_intersection(a: &[u32], b: &[u32]) -> Vec<u32> {
-    let (mut i, mut j) = (0, 0);
-    let mut out = Vec::with_capacity(8);
-    while i < a.len() && j < b.len() {
-        match a[i].cmp(&b[j]) {
-            std::cmp::Ordering::Less => i += 1,
-            std::cmp::Ordering::Greater => j += 1,
-            std::cmp::Ordering::Equal => {
-                out.push(a[i]);
-                i += 1;
-                j += 1;
-            }
-        }
-    }
-    out
+fn octa_group() -> &'static OctaGroup {
+    static GROUP: std::sync::OnceLock<OctaGroup> = std::sync::OnceLock::new();
+    GROUP.get_or_init(|| {
+        let elements = binary_octahedral_group();
+        let mul = elements.iter().map(|a| std::array::from_fn(|b| nearest_octahedral_index(&a.mul(&elements[b])))).collect();
+        OctaGroup { elements, mul }
+    })
+}
+
+/// Largest number of tets around an edge that is analysed.
+const MAX_RING: usize = 64;
+
+/// Per-chunk accumulation of [`singular_edges`].
+#[derive(Default)]
+struct ChunkResult {
+    edges: Vec<SingularEdge>,
+    n_interior: usize,
+    n_unordered: usize,
 }
 
 /// Singular edges of the field given by one frame per tet, and the report.
@@ -171,8 +181,9 @@ fn sorted_intersection(a: &[u32], b: &[u32]) -> Vec<u32> {
 /// quarter-turn holonomy axis and the edge for valence 3/5.
 pub fn singular_edges(mesh: &TetMesh, frame_per_tet: &[Mat3], boundary_vertex: &[bool], axis_tolerance_deg: f64) -> (Vec<SingularEdge>, SingularReport) {
     let n = mesh.n_vertices();
+    let group = octa_group();
     let quats: Vec<Quat> = frame_per_tet.par_iter().map(Quat::from_matrix).collect();
-    // Vertex → tets (CSR).
+    // Vertex → tets (CSR, increasing tet order).
     let mut ptr = vec![0usize; n + 1];
     for t in &mesh.tets {
         for v in t {
@@ -192,75 +203,89 @@ pub fn singular_edges(mesh: &TetMesh, frame_per_tet: &[Mat3], boundary_vertex: &
     }
     let edges = crate::fem::tet_p1::tet_mesh_edges(mesh);
     let cos_tol = axis_tolerance_deg.to_radians().cos();
-    // Per edge: None (boundary / regular), Some(Ok(edge)) singular, Some(Err(())) unordered.
-    let results: Vec<(bool, Option<Result<SingularEdge, ()>>)> = edges
-        .par_iter()
-        .map(|&[a, b]| {
-            let (ta, tb) = (&vt[ptr[a as usize]..ptr[a as usize + 1]], &vt[ptr[b as usize]..ptr[b as usize + 1]]);
-            let ring = sorted_intersection(ta, tb);
-            let link: Vec<[u32; 2]> = ring
-                .iter()
-                .map(|&t| {
+    let chunks: Vec<ChunkResult> = edges
+        .par_chunks(4096)
+        .map(|chunk| {
+            let mut res = ChunkResult::default();
+            let mut ring = [0u32; MAX_RING];
+            let mut link = [[0u32; 2]; MAX_RING];
+            let mut order = [(0u8, false); MAX_RING];
+            for &[a, b] in chunk {
+                let (ta, tb) = (&vt[ptr[a as usize]..ptr[a as usize + 1]], &vt[ptr[b as usize]..ptr[b as usize + 1]]);
+                let Some(k) = sorted_intersection_into(ta, tb, &mut ring) else {
+                    res.n_interior += 1;
+                    res.n_unordered += 1;
+                    continue;
+                };
+                for (i, &t) in ring[..k].iter().enumerate() {
                     let mut o = [u32::MAX; 2];
-                    let mut k = 0;
+                    let mut m = 0;
                     for v in &mesh.tets[t as usize] {
-                        if v.0 != a && v.0 != b && k < 2 {
-                            o[k] = v.0;
-                            k += 1;
+                        if v.0 != a && v.0 != b && m < 2 {
+                            o[m] = v.0;
+                            m += 1;
                         }
                     }
-                    o
-                })
-                .collect();
-            match order_ring(&link) {
-                RingOrder::Open => (false, None),
-                RingOrder::Invalid => (true, Some(Err(()))),
-                RingOrder::Closed(order) => {
-                    let h = ring_holonomy(&order, &ring, &quats);
-                    let angle = 2.0 * h.vector().norm().atan2(h.scalar().abs());
-                    if angle < 0.1 {
-                        return (true, None);
-                    }
-                    // Loop orientation: sign of vol(a, b, c0, c1).
-                    let (pa, pb) = (mesh.positions[a as usize], mesh.positions[b as usize]);
-                    let [c0, c1] = link[order[0].0];
-                    let (c0, c1) = if order[0].1 { (c1, c0) } else { (c0, c1) };
-                    let e = pb - pa;
-                    let turn = e.dot(&(mesh.positions[c0 as usize] - pa).cross(&(mesh.positions[c1 as usize] - pa)));
-                    let e_loop = if turn >= 0.0 { e.normalize() } else { -e.normalize() };
-                    // World axis of the holonomy (rotation by `angle` about it).
-                    let h = if h.scalar() < 0.0 { h.neg() } else { h };
-                    let axis_local = h.vector().normalize();
-                    let axis = frame_per_tet[ring[order[0].0] as usize] * axis_local;
-                    let align = axis.dot(&e_loop);
-                    let quarter = (angle - std::f64::consts::FRAC_PI_2).abs() < 0.1;
-                    let kind = if quarter && align >= cos_tol {
-                        SingularKind::Valence3
-                    } else if quarter && align <= -cos_tol {
-                        SingularKind::Valence5
-                    } else {
-                        SingularKind::Complex
-                    };
-                    (true, Some(Ok(SingularEdge { vertices: [a, b], kind, holonomy_angle_deg: angle.to_degrees(), axis_alignment: align.abs() })))
+                    link[i] = o;
                 }
+                match order_ring(&link[..k], &mut order) {
+                    RingOrder::Open => continue,
+                    RingOrder::Invalid => {
+                        res.n_interior += 1;
+                        res.n_unordered += 1;
+                        continue;
+                    }
+                    RingOrder::Closed => res.n_interior += 1,
+                }
+                // H = o_{k−1} ⋯ o_0, o_i the matching from ring tet i to i+1.
+                let mut h = 0u8; // index of 1
+                for i in 0..k {
+                    let s = quats[ring[order[i].0 as usize] as usize];
+                    let t = quats[ring[order[(i + 1) % k].0 as usize] as usize];
+                    let o = nearest_octahedral_index(&t.conj().mul(&s));
+                    h = group.mul[o as usize][h as usize];
+                }
+                let hq = group.elements[h as usize];
+                let angle = 2.0 * hq.vector().norm().atan2(hq.scalar().abs());
+                if angle < 0.1 {
+                    continue;
+                }
+                // Loop orientation: sign of vol(a, b, c0, c1).
+                let (pa, pb) = (mesh.positions[a as usize], mesh.positions[b as usize]);
+                let [c0, c1] = link[order[0].0 as usize];
+                let (c0, c1) = if order[0].1 { (c1, c0) } else { (c0, c1) };
+                let e = pb - pa;
+                let turn = e.dot(&(mesh.positions[c0 as usize] - pa).cross(&(mesh.positions[c1 as usize] - pa)));
+                let e_loop = if turn >= 0.0 { e.normalize() } else { -e.normalize() };
+                // World axis of the holonomy (rotation by `angle` about it).
+                let hq = if hq.scalar() < 0.0 { hq.neg() } else { hq };
+                let axis = frame_per_tet[ring[order[0].0 as usize] as usize] * hq.vector().normalize();
+                let align = axis.dot(&e_loop);
+                let quarter = (angle - std::f64::consts::FRAC_PI_2).abs() < 0.1;
+                let kind = if quarter && align >= cos_tol {
+                    SingularKind::Valence3
+                } else if quarter && align <= -cos_tol {
+                    SingularKind::Valence5
+                } else {
+                    SingularKind::Complex
+                };
+                res.edges.push(SingularEdge { vertices: [a, b], kind, holonomy_angle_deg: angle.to_degrees(), axis_alignment: align.abs() });
             }
+            res
         })
         .collect();
     let mut report = SingularReport::default();
     let mut out = Vec::new();
-    for (interior, r) in results {
-        report.n_interior_edges += interior as usize;
-        match r {
-            Some(Ok(e)) => {
-                match e.kind {
-                    SingularKind::Valence3 => report.n_valence3 += 1,
-                    SingularKind::Valence5 => report.n_valence5 += 1,
-                    SingularKind::Complex => report.n_complex += 1,
-                }
-                out.push(e);
+    for c in chunks {
+        report.n_interior_edges += c.n_interior;
+        report.n_unordered_rings += c.n_unordered;
+        for e in c.edges {
+            match e.kind {
+                SingularKind::Valence3 => report.n_valence3 += 1,
+                SingularKind::Valence5 => report.n_valence5 += 1,
+                SingularKind::Complex => report.n_complex += 1,
             }
-            Some(Err(())) => report.n_unordered_rings += 1,
-            None => {}
+            out.push(e);
         }
     }
     curve_structure(&out, boundary_vertex, &mut report);
@@ -268,8 +293,9 @@ pub fn singular_edges(mesh: &TetMesh, frame_per_tet: &[Mat3], boundary_vertex: &
 }
 
 enum RingOrder {
-    /// Tets in cyclic order: (index into the ring, link pair reversed?).
-    Closed(Vec<(usize, bool)>),
+    /// Tets in cyclic order, written to the `order` buffer: (index into the
+    /// ring, link pair reversed?).
+    Closed,
     /// The link is a path: the edge is on the boundary.
     Open,
     /// Not a simple path or cycle.
@@ -277,61 +303,62 @@ enum RingOrder {
 }
 
 /// Order the tets around an edge from their link pairs `[c, d]`.
-fn order_ring(link: &[[u32; 2]]) -> RingOrder {
+fn order_ring(link: &[[u32; 2]], order: &mut [(u8, bool)]) -> RingOrder {
     let k = link.len();
-    if k == 0 {
+    if k == 0 || k > order.len() {
         return RingOrder::Invalid;
     }
-    // Every link vertex must appear at most twice.
+    // Every link vertex must appear exactly twice for a closed ring.
     let count = |x: u32| link.iter().filter(|p| p[0] == x || p[1] == x).count();
-    let mut start = 0;
-    let mut open = false;
-    for (i, p) in link.iter().enumerate() {
+    for p in link {
         for &x in p {
             match count(x) {
-                1 => {
-                    open = true;
-                    start = i;
-                }
+                1 => return RingOrder::Open,
                 2 => {}
                 _ => return RingOrder::Invalid,
             }
         }
     }
-    if open {
-        return RingOrder::Open;
-    }
-    let mut order = vec![(start, false)];
-    let mut used = vec![false; k];
-    used[start] = true;
-    let first = link[start][0];
-    let mut cur = link[start][1];
+    let mut used = 1u64;
+    order[0] = (0, false);
+    let first = link[0][0];
+    let mut cur = link[0][1];
+    let mut len = 1;
     while cur != first {
-        let Some(next) = (0..k).find(|&i| !used[i] && (link[i][0] == cur || link[i][1] == cur)) else {
+        let Some(next) = (0..k).find(|&i| used & (1 << i) == 0 && (link[i][0] == cur || link[i][1] == cur)) else {
             return RingOrder::Invalid;
         };
-        used[next] = true;
+        used |= 1 << next;
         let rev = link[next][1] == cur;
-        order.push((next, rev));
+        order[len] = (next as u8, rev);
+        len += 1;
         cur = if rev { link[next][0] } else { link[next][1] };
     }
-    if order.len() != k {
+    if len != k {
         return RingOrder::Invalid;
     }
-    RingOrder::Closed(order)
+    RingOrder::Closed
 }
 
-/// `H = o_{k−1} ⋯ o_0` with `o_i` the matching from tet `i` to tet `i+1`.
-fn ring_holonomy(order: &[(usize, bool)], ring: &[u32], quats: &[Quat]) -> Quat {
-    let k = order.len();
-    let mut h = Quat::IDENTITY;
-    for i in 0..k {
-        let s = quats[ring[order[i].0] as usize];
-        let t = quats[ring[order[(i + 1) % k].0] as usize];
-        let o = nearest_octahedral_element(&t.conj().mul(&s));
-        h = snap(&o.mul(&h));
+/// Intersection of two increasing lists into `out`; `None` when it does not fit.
+fn sorted_intersection_into(a: &[u32], b: &[u32], out: &mut [u32]) -> Option<usize> {
+    let (mut i, mut j, mut k) = (0, 0, 0);
+    while i < a.len() && j < b.len() {
+        match a[i].cmp(&b[j]) {
+            std::cmp::Ordering::Less => i += 1,
+            std::cmp::Ordering::Greater => j += 1,
+            std::cmp::Ordering::Equal => {
+                if k == out.len() {
+                    return None;
+                }
+                out[k] = a[i];
+                k += 1;
+                i += 1;
+                j += 1;
+            }
+        }
     }
-    h
+    Some(k)
 }
 
 /// Fill the curve counts of `report` from the singular edges.
@@ -359,7 +386,7 @@ fn curve_structure(edges: &[SingularEdge], boundary_vertex: &[bool], report: &mu
 }
 
 #[cfg(test)]
-mod tests {
+pub(crate) mod tests {
     use super::*;
 
     #[test]
@@ -442,12 +469,24 @@ mod tests {
 
     #[test]
     fn rings_are_ordered_or_recognized_as_open() {
+        let mut order = [(0u8, false); MAX_RING];
         let closed = [[1, 2], [3, 4], [2, 3], [4, 1]];
-        match order_ring(&closed) {
-            RingOrder::Closed(o) => assert_eq!(o.len(), 4),
-            _ => panic!("closed ring not recognized"),
+        assert!(matches!(order_ring(&closed, &mut order), RingOrder::Closed));
+        assert_eq!(order[..4].iter().map(|o| o.0).collect::<Vec<_>>(), vec![0, 2, 1, 3]);
+        assert!(matches!(order_ring(&[[1, 2], [2, 3]], &mut order), RingOrder::Open));
+        assert!(matches!(order_ring(&[[1, 2], [1, 3], [1, 4]], &mut order), RingOrder::Invalid));
+    }
+
+    #[test]
+    fn group_table_is_the_quaternion_product() {
+        let g = octa_group();
+        for (a, qa) in g.elements.iter().enumerate() {
+            assert_eq!(nearest_octahedral_index(qa) as usize, a);
+            for (b, qb) in g.elements.iter().enumerate() {
+                let p = qa.mul(qb);
+                let r = g.elements[g.mul[a][b] as usize];
+                assert!((0..4).all(|k| (p.0[k] - r.0[k]).abs() < 1e-14));
+            }
         }
-        assert!(matches!(order_ring(&[[1, 2], [2, 3]]), RingOrder::Open));
-        assert!(matches!(order_ring(&[[1, 2], [1, 3], [1, 4]]), RingOrder::Invalid));
     }
 }
