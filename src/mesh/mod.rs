@@ -18,10 +18,12 @@ pub mod error;
 pub mod fixtures;
 pub mod ids;
 pub mod orientation;
+pub mod repair;
 pub mod summary;
 pub mod tetmesh;
 pub mod topology;
 pub mod trimesh;
+pub mod weld;
 
 pub use error::MeshError;
 pub use ids::{EdgeId, FaceId, TetId, VertexId};
