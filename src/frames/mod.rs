@@ -14,7 +14,9 @@
 //! the enclosed volume), [`volume`] (checks, size, quality measures),
 //! [`mbo`] (diffusion–projection smoothing of the 9-vector field),
 //! [`singular`] (holonomy of tet frames around edges), [`field`] (the
-//! stage entry point [`compute_frame_field`], its options and report).
+//! stage entry point [`compute_frame_field`], its options and report),
+//! [`vtu`] (the `frames.vtu` and `frames_singular.vtu` artifacts), [`pcg`]
+//! (the iterative solver of the large diffusions).
 //!
 //! Conventions used throughout: a frame is given by a *frame quaternion*
 //! `p` (or rotation matrix `R(p)`) whose columns are the frame axes; `p`
@@ -38,9 +40,11 @@ pub mod singular;
 pub mod stuffing;
 pub mod su2;
 pub mod volume;
+pub mod vtu;
 
 pub use error::FramesError;
 pub use field::{FrameField, FramesOptions, FramesReport, compute_frame_field};
 pub use quaternion::{Mat3, Quat};
 pub use singular::{SingularEdge, SingularKind};
 pub use su2::{C64, Su2};
+pub use vtu::{write_frames_vtu, write_singular_edges_vtu};
