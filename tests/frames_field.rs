@@ -168,3 +168,27 @@ fn options_reject_unknown_fields_and_bad_values() {
     let bad = FramesOptions { tau_shrink: 1.5, ..Default::default() };
     assert!(matches!(compute_frame_field(&fixtures::icosphere(1), None, &bad, &Progress::none()), Err(FramesError::InvalidOption { name: "tau_shrink", .. })));
 }
+
+#[test]
+fn report_serializes_and_progress_is_monotone() {
+    use meshatlas::progress::ProgressSink;
+    use std::sync::{Arc, Mutex, atomic::AtomicBool};
+    struct Rec(Mutex<Vec<f64>>);
+    impl ProgressSink for Rec {
+        fn report(&self, _stage: &str, fraction: f64) {
+            self.0.lock().unwrap().push(fraction);
+        }
+    }
+    let rec = Arc::new(Rec(Mutex::new(Vec::new())));
+    let p = Progress::new(rec.clone(), Arc::new(AtomicBool::new(false)));
+    let field = compute_frame_field(&fixtures::icosphere(2), None, &FramesOptions { target_size: Some(0.3), ..Default::default() }, &p).unwrap();
+    let f = rec.0.lock().unwrap().clone();
+    assert!(f.len() > 3 && f.windows(2).all(|w| w[1] >= w[0]), "{f:?}");
+    assert_eq!(f.last(), Some(&1.0));
+    let v = serde_json::to_value(&field.report).unwrap();
+    for key in ["tets", "vertices", "energy_before", "energy_after", "iterations", "energy_history", "singular", "model_surface_residual_max", "seconds", "volume"] {
+        assert!(v.get(key).is_some(), "missing {key}");
+    }
+    assert!(v["energy_history"].as_array().is_some_and(|h| !h.is_empty() && h.iter().all(|r| r["energy"].is_f64())));
+    assert!(v["singular"]["n_valence3"].is_u64() && v["seconds"]["total"].is_f64());
+}

@@ -96,7 +96,7 @@ pub struct MboParams {
 /// One diffuse–project step in the energy history.
 #[derive(Debug, Clone, Copy, Serialize)]
 pub struct EnergyRecord {
-    /// Time step of the diffusion.
+    /// Time step of the diffusion (0 for the harmonic start).
     pub tau: f64,
     /// Dirichlet energy of the projected field after the step.
     pub energy: f64,
@@ -189,8 +189,10 @@ pub fn smooth_octahedral_field(
         diffuser.set_matrix(ops, &a, &mut timer)?;
         n_factorizations += 1;
         let x = diffuser.diffuse(ops, &state.columns, 1.0, &mut timer)?;
+        let old = state.columns.clone();
         state.project_free(&x, constraints, params.projection_accept, &mut timer);
-        history.push(EnergyRecord { tau: 0.0, energy: field_energy(ops, &state.columns), max_change: f64::NAN });
+        let max_change = max_vertex_change(&old, &state.columns);
+        history.push(EnergyRecord { tau: 0.0, energy: field_energy(ops, &state.columns), max_change });
         progress.check()?;
     }
 
@@ -222,10 +224,7 @@ pub fn smooth_octahedral_field(
             } else {
                 state.project_all(&x, constraints, params.projection_accept, &mut timer);
             }
-            let max_change = (0..n)
-                .into_par_iter()
-                .map(|v| (0..9).map(|c| (state.columns[c][v] - old[c][v]).powi(2)).sum::<f64>().sqrt())
-                .reduce(|| 0.0, f64::max);
+            let max_change = max_vertex_change(&old, &state.columns);
             let energy = field_energy(ops, &state.columns);
             history.push(EnergyRecord { tau, energy, max_change });
             progress.set(((li * params.max_steps_per_level + step + 1) as f64 / total_steps).min(1.0));
@@ -251,6 +250,11 @@ pub fn smooth_octahedral_field(
         solve_seconds: timer.solve,
         project_seconds: timer.project,
     })
+}
+
+/// Largest change of a vertex 9-vector between two fields (by component).
+fn max_vertex_change(a: &[Vec<f64>], b: &[Vec<f64>]) -> f64 {
+    (0..a[0].len()).into_par_iter().map(|v| (0..9).map(|c| (a[c][v] - b[c][v]).powi(2)).sum::<f64>().sqrt()).reduce(|| 0.0, f64::max)
 }
 
 #[derive(Default)]

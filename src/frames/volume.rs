@@ -64,6 +64,8 @@ pub struct VolumeReport {
     pub volume_relative_error: f64,
     /// Largest distance from a boundary vertex to the input surface.
     pub max_boundary_vertex_distance: f64,
+    /// Things the user should know (e.g. volume lost in thin parts).
+    pub warnings: Vec<String>,
 }
 
 /// The boundary loops of `surface` if it is open, as an error.
@@ -142,6 +144,15 @@ pub fn tetrahedralize_enclosed_volume(surface: &TriMesh, spacing: f64, alpha_lon
         .reduce(|| 0.0, f64::max);
     let (min_d, max_d) = dihedral_angle_range(&stuffed.mesh);
     let volume = stuffed.mesh.volume();
+    let relative_error = if enclosed > 0.0 { (volume - enclosed) / enclosed } else { 0.0 };
+    let mut warnings = Vec::new();
+    if relative_error < -0.05 {
+        warnings.push(format!(
+            "the volume mesh holds {:.1}% less than the enclosed volume: parts thinner than about two lattice spacings ({:.4e}) are not resolved; use a smaller target_size",
+            -100.0 * relative_error,
+            2.0 * spacing
+        ));
+    }
     let report = VolumeReport {
         source: "stuffed".into(),
         spacing,
@@ -158,8 +169,9 @@ pub fn tetrahedralize_enclosed_volume(surface: &TriMesh, spacing: f64, alpha_lon
         max_dihedral_deg: max_d,
         volume,
         enclosed_volume: enclosed,
-        volume_relative_error: if enclosed > 0.0 { (volume - enclosed) / enclosed } else { 0.0 },
+        volume_relative_error: relative_error,
         max_boundary_vertex_distance: max_dist,
+        warnings,
     };
     Ok((stuffed, report))
 }
