@@ -21,14 +21,15 @@ fn surface_to_boundary_distance(surface: &TriMesh, mesh: &TetMesh) -> f64 {
 }
 
 /// Stuff `surface` at spacing `h` and check the stated tolerances:
-/// boundary vertices on the surface to 1e-12 of its size, surface within
-/// `h` of the mesh boundary, volume within `vol_tol`, dihedral angles
-/// within [10°, 165°] (measured, not guaranteed: see `stuffing`).
+/// boundary vertices on the surface to 1e-10 of its size (round-off of the
+/// segment–triangle intersections), surface within `h` of the mesh
+/// boundary, volume within `vol_tol`, dihedral angles within [10°, 165°]
+/// (measured, not guaranteed: see `stuffing`).
 fn check_stuffing(name: &str, surface: &TriMesh, h: f64, vol_tol: f64) {
     let (vol, rep) = tetrahedralize_enclosed_volume(surface, h, 0.24999, 0.41189).unwrap();
     assert!(vol.mesh.validate().is_ok(), "{name}");
     let diag = surface.bounding_box().unwrap().diagonal();
-    assert!(rep.max_boundary_vertex_distance <= 1e-12 * diag, "{name}: boundary vertex off the surface by {}", rep.max_boundary_vertex_distance);
+    assert!(rep.max_boundary_vertex_distance <= 1e-10 * diag, "{name}: boundary vertex off the surface by {}", rep.max_boundary_vertex_distance);
     let back = surface_to_boundary_distance(surface, &vol.mesh);
     assert!(back <= h, "{name}: surface {back} away from the mesh boundary (h = {h})");
     assert!(rep.volume_relative_error.abs() <= vol_tol, "{name}: volume error {}", rep.volume_relative_error);
@@ -53,17 +54,37 @@ fn stuffing_follows_cube_sphere_and_torus() {
 }
 
 #[test]
+fn stuffing_is_valid_for_any_lattice_offset() {
+    use meshatlas::frames::stuffing::{StuffingParams, isosurface_stuffing};
+    use rand::rngs::StdRng;
+    use rand::{Rng, SeedableRng};
+    let mut rng = StdRng::seed_from_u64(81);
+    for (name, s, h) in [("torus", fixtures::torus(1.0, 0.4, 32, 16), 0.12), ("cube", fixtures::cube(4), 0.25)] {
+        let bvh = TriangleBvh::new(&s);
+        for _ in 0..4 {
+            let mut p = StuffingParams::new(h, 0.24999, 0.41189);
+            p.lattice_offset = [rng.random_range(0.0..1.0), rng.random_range(0.0..1.0), rng.random_range(0.0..1.0)];
+            let v = isosurface_stuffing(&s, &bvh, &p);
+            assert!(v.mesh.validate().is_ok(), "{name} {:?}", p.lattice_offset);
+            let (lo, hi) = meshatlas::frames::volume::dihedral_angle_range(&v.mesh);
+            assert!(lo >= 10.0 && hi <= 165.0, "{name} {:?}: {lo}..{hi}", p.lattice_offset);
+        }
+    }
+}
+
+#[test]
 fn thin_walls_need_a_fine_lattice() {
     // gmsh_t13 is a thin-walled part: at diag/20 walls thinner than about
     // two lattice spacings are lost (the report says so), at diag/80 the
-    // volume is right.
+    // volume is within 5 % (tets whose four vertices all warped onto the
+    // surface are dropped, which thins the thinnest walls a little).
     let dir = std::path::PathBuf::from(std::env::var("MESHATLAS_CORPUS").unwrap_or_else(|_| "/work/shared/data/corpus".into()));
     let s = load_path(&dir.join("gmsh_t13.stl"), None, &LoadOptions::default()).unwrap().surface;
     let diag = s.bounding_box().unwrap().diagonal();
     let (_, coarse) = tetrahedralize_enclosed_volume(&s, diag / 20.0, 0.24999, 0.41189).unwrap();
     assert!(coarse.volume_relative_error < -0.3, "{}", coarse.volume_relative_error);
     assert!(coarse.warnings.iter().any(|w| w.contains("thinner")), "{:?}", coarse.warnings);
-    check_stuffing("gmsh_t13", &s, diag / 80.0, 0.01);
+    check_stuffing("gmsh_t13", &s, diag / 80.0, 0.05);
 }
 
 #[test]
@@ -99,7 +120,7 @@ fn corpus_closed_surfaces_give_valid_fields() {
             .unwrap_or_else(|e| panic!("{file}: {e}"));
         let r = &field.report;
         assert!(field.volume.validate().is_ok(), "{file}");
-        assert!(r.volume.max_boundary_vertex_distance <= 1e-12 * h * cells, "{file}");
+        assert!(r.volume.max_boundary_vertex_distance <= 1e-10 * h * cells, "{file}");
         assert!(r.volume.volume_relative_error.abs() < 0.1, "{file}: volume error {}", r.volume.volume_relative_error);
         assert!(r.model_surface_residual_max < 1e-12, "{file}");
         assert!(r.boundary_alignment_max_deg < 1e-6, "{file}");

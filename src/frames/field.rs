@@ -151,10 +151,10 @@ impl FramesOptions {
     /// [`FramesError::InvalidOption`] naming the first bad option.
     pub fn validate(&self) -> Result<(), FramesError> {
         let bad = |name: &'static str, reason: String| Err(FramesError::InvalidOption { name, reason });
-        if let Some(h) = self.target_size {
-            if !(h > 0.0 && h.is_finite()) {
-                return bad("target_size", format!("must be a positive length, got {h}"));
-            }
+        if let Some(h) = self.target_size
+            && !(h > 0.0 && h.is_finite())
+        {
+            return bad("target_size", format!("must be a positive length, got {h}"));
         }
         if self.max_tets == 0 {
             return bad("max_tets", "must be positive".into());

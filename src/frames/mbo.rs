@@ -180,7 +180,7 @@ pub fn smooth_octahedral_field(
     let kmax = (0..n).map(|j| ops.stiffness_lower[ops.diagonal_slot(j)]).fold(0.0, f64::max);
     let penalty: Vec<f64> = constraints.iter().map(|c| if matches!(c, VertexConstraint::Free) { 0.0 } else { 1e8 * kmax.max(1e-300) }).collect();
     let has_constraints = penalty.iter().any(|p| *p > 0.0);
-    let has_free = penalty.iter().any(|p| *p == 0.0);
+    let has_free = penalty.contains(&0.0);
     let mut diffuser = Diffuser::new(params.solver, params.pcg_tolerance);
     let mut n_factorizations = 0;
 

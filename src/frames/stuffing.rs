@@ -32,8 +32,8 @@
 //! if it has no outside (+) vertex, else replaced by its inside part: one
 //! tet (one − vertex), a pyramid split in 2 tets (two −, one on-surface
 //! vertex, one +), or a triangular prism split in 3 tets (two − and two +,
-//! or three − and one +). A tet whose four vertices were all warped onto
-//! the surface is kept when its centroid is inside.
+//! or three − and one +). Tets without an inside vertex are discarded,
+//! including those whose four vertices were all warped onto the surface.
 //!
 //! **Quadrilateral diagonals.** Each quadrilateral on a lattice face (two −
 //! vertices `x, y`, one + vertex `z`, cut points on `yz`, `xz`) is split
@@ -64,6 +64,36 @@ pub struct StuffingParams {
     pub alpha_long: f64,
     /// Warp threshold on short edges, as a fraction of the edge length.
     pub alpha_short: f64,
+    /// Offset of the lattice origin, in units of `h` (irrational fractions
+    /// by default, see the module docs).
+    pub lattice_offset: [f64; 3],
+    /// How lattice-face quadrilaterals are split.
+    pub diagonal_rule: DiagonalRule,
+}
+
+/// Rule choosing the diagonal of a quadrilateral on a lattice face; it
+/// depends on the face alone, so the two tets sharing it agree.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum DiagonalRule {
+    /// The shorter diagonal (ties: from the lower lattice index).
+    Shortest,
+    /// The split whose two triangles have the larger smallest angle.
+    MaxMinAngle,
+    /// From the inside vertex of lower lattice index.
+    LowerIndex,
+}
+
+impl StuffingParams {
+    /// Parameters with the default lattice offset and diagonal rule.
+    pub fn new(spacing: f64, alpha_long: f64, alpha_short: f64) -> Self {
+        Self {
+            spacing,
+            alpha_long,
+            alpha_short,
+            lattice_offset: [0.414_213_562_373_095, 0.236_067_977_499_789_7, 0.141_421_356_237_309_5],
+            diagonal_rule: DiagonalRule::Shortest,
+        }
+    }
 }
 
 /// A stuffed volume and the provenance of its vertices.
@@ -155,7 +185,7 @@ fn edge_key(a: u32, b: u32) -> u64 {
 pub fn isosurface_stuffing(surface: &TriMesh, bvh: &TriangleBvh, params: &StuffingParams) -> StuffedVolume {
     let h = params.spacing;
     let bb = surface.bounding_box().unwrap_or_else(|| crate::geom::BoundingBox { min: Vec3::zeros(), max: Vec3::zeros() });
-    let offset = Vec3::new(0.318_309_886_183_790_7, 0.271_828_182_845_904_5, 0.141_421_356_237_309_5) * h;
+    let offset = Vec3::from(params.lattice_offset) * h;
     let origin = bb.min - Vec3::repeat(1.5 * h) - offset;
     let ext = bb.max - origin;
     let n = |e: f64| ((e / h).ceil() as usize + 2).max(2);
@@ -183,22 +213,31 @@ pub fn isosurface_stuffing(surface: &TriMesh, bvh: &TriangleBvh, params: &Stuffi
         cuts.iter().enumerate().filter(|(_, c)| sign[c.a as usize] * sign[c.b as usize] < 0).map(|(i, c)| (edge_key(c.a, c.b), i as u32)).collect();
 
     // 4. Fill.
-    let mut fill = Fill { lat: &lat, sign: &sign, cuts: &cuts, cut_index: &cut_index, overrides: &position_override, steiner: Vec::new(), tets: Vec::new() };
+    let mut fill = Fill {
+        lat: &lat,
+        sign: &sign,
+        cuts: &cuts,
+        cut_index: &cut_index,
+        overrides: &position_override,
+        rule: params.diagonal_rule,
+        steiner: Vec::new(),
+        tets: Vec::new(),
+    };
     for k in 0..nz {
         for j in 0..ny {
             for i in 0..nx {
                 let c = lat.red(i, j, k);
                 if i + 1 < nx {
                     let f = [lat.black(i + 1, j, k), lat.black(i + 1, j + 1, k), lat.black(i + 1, j + 1, k + 1), lat.black(i + 1, j, k + 1)];
-                    fill.face_tets(c, lat.red(i + 1, j, k), f, bvh);
+                    fill.face_tets(c, lat.red(i + 1, j, k), f);
                 }
                 if j + 1 < ny {
                     let f = [lat.black(i, j + 1, k), lat.black(i + 1, j + 1, k), lat.black(i + 1, j + 1, k + 1), lat.black(i, j + 1, k + 1)];
-                    fill.face_tets(c, lat.red(i, j + 1, k), f, bvh);
+                    fill.face_tets(c, lat.red(i, j + 1, k), f);
                 }
                 if k + 1 < nz {
                     let f = [lat.black(i, j, k + 1), lat.black(i + 1, j, k + 1), lat.black(i + 1, j + 1, k + 1), lat.black(i, j + 1, k + 1)];
-                    fill.face_tets(c, lat.red(i, j, k + 1), f, bvh);
+                    fill.face_tets(c, lat.red(i, j, k + 1), f);
                 }
             }
         }
@@ -420,6 +459,7 @@ struct Fill<'a> {
     cuts: &'a [Cut],
     cut_index: &'a HashMap<u64, u32>,
     overrides: &'a HashMap<u32, (Vec3, u32)>,
+    rule: DiagonalRule,
     steiner: Vec<Vec3>,
     tets: Vec<[PRef; 4]>,
 }
@@ -439,9 +479,9 @@ impl Fill<'_> {
     }
 
     /// The 4 BCC tets of the red edge `r0 r1` and the square face `f`.
-    fn face_tets(&mut self, r0: u32, r1: u32, f: [u32; 4], bvh: &TriangleBvh) {
+    fn face_tets(&mut self, r0: u32, r1: u32, f: [u32; 4]) {
         for m in 0..4 {
-            self.stencil([r0, r1, f[m], f[(m + 1) % 4]], bvh);
+            self.stencil([r0, r1, f[m], f[(m + 1) % 4]]);
         }
     }
 
@@ -450,26 +490,37 @@ impl Fill<'_> {
     /// diagonal joins `x` and `cut(y, z)`.
     fn diagonal_from_first(&self, x: u32, y: u32, z: u32) -> bool {
         let (lo, hi) = (x.min(y), x.max(y));
-        let d_lo = (self.lat.position(lo) - self.pos(self.cut(hi, z))).norm_squared();
-        let d_hi = (self.lat.position(hi) - self.pos(self.cut(lo, z))).norm_squared();
-        let from = if d_hi < d_lo { hi } else { lo };
+        let (plo, phi) = (self.lat.position(lo), self.lat.position(hi));
+        let (clo, chi) = (self.pos(self.cut(lo, z)), self.pos(self.cut(hi, z)));
+        let from = match self.rule {
+            DiagonalRule::LowerIndex => lo,
+            DiagonalRule::Shortest => {
+                if (phi - clo).norm_squared() < (plo - chi).norm_squared() { hi } else { lo }
+            }
+            DiagonalRule::MaxMinAngle => {
+                // Split from lo: triangles (lo, hi, chi), (lo, chi, clo);
+                // from hi: (lo, hi, clo), (hi, chi, clo).
+                let min_angle = |t: [&Vec3; 3]| crate::geom::corner_angles(t[0], t[1], t[2]).iter().copied().fold(f64::INFINITY, f64::min);
+                let from_lo = min_angle([&plo, &phi, &chi]).min(min_angle([&plo, &chi, &clo]));
+                let from_hi = min_angle([&plo, &phi, &clo]).min(min_angle([&phi, &chi, &clo]));
+                if from_hi > from_lo { hi } else { lo }
+            }
+        };
         from == x
     }
 
-    fn stencil(&mut self, v: [u32; 4], bvh: &TriangleBvh) {
+    fn stencil(&mut self, v: [u32; 4]) {
         let s = v.map(|x| self.sign[x as usize]);
         let neg: Vec<usize> = (0..4).filter(|&i| s[i] < 0).collect();
         let pos: Vec<usize> = (0..4).filter(|&i| s[i] > 0).collect();
         let zer: Vec<usize> = (0..4).filter(|&i| s[i] == 0).collect();
         if pos.is_empty() {
+            // Kept whole when one vertex is inside; a tet with its four
+            // vertices warped onto the surface is discarded, as in the paper
+            // (it is a sliver lying along the surface: measured down to 4.7°
+            // on a torus when kept).
             if !neg.is_empty() {
                 self.tets.push(v.map(PRef::Lattice));
-            } else {
-                // All four on the surface: keep if the centroid is inside.
-                let c = v.iter().map(|&x| self.pos(PRef::Lattice(x))).sum::<Vec3>() / 4.0;
-                if point_inside(bvh, &c, self.lat.h) {
-                    self.tets.push(v.map(PRef::Lattice));
-                }
             }
             return;
         }
@@ -555,22 +606,4 @@ impl Fill<'_> {
             }
         }
     }
-}
-
-/// Inside test of a single point by crossing parity of a ray along a few
-/// fixed directions (the first unambiguous one decides).
-pub fn point_inside(bvh: &TriangleBvh, x: &Vec3, scale: f64) -> bool {
-    let dirs = [Vec3::new(1.0, 0.123_456_7, 0.076_543_2), Vec3::new(-0.2, 1.0, 0.31), Vec3::new(0.17, -0.29, 1.0), Vec3::new(-1.0, -0.41, 0.23)];
-    let length = 1e6 * scale.max(1e-300);
-    let mut hits = Vec::new();
-    let mut last = false;
-    for d in dirs {
-        let q = x + d.normalize() * length;
-        bvh.segment_hits(x, &q, &mut hits);
-        last = hits.len() % 2 == 1;
-        if !hits.iter().any(|h| h.ambiguous) {
-            return last;
-        }
-    }
-    last
 }

@@ -129,7 +129,7 @@ pub fn lattice_spacing(surface: &TriMesh, target_size: Option<f64>, max_tets: us
 /// [`FramesError::InvalidVolume`] if the result fails validation (a bug).
 pub fn tetrahedralize_enclosed_volume(surface: &TriMesh, spacing: f64, alpha_long: f64, alpha_short: f64) -> Result<(StuffedVolume, VolumeReport), FramesError> {
     let bvh = TriangleBvh::new(surface);
-    let stuffed = isosurface_stuffing(surface, &bvh, &StuffingParams { spacing, alpha_long, alpha_short });
+    let stuffed = isosurface_stuffing(surface, &bvh, &StuffingParams::new(spacing, alpha_long, alpha_short));
     let enclosed = surface.signed_volume().abs();
     if stuffed.mesh.tets.is_empty() {
         return Err(FramesError::NoInterior { spacing, volume: enclosed });
