@@ -14,8 +14,12 @@
 //!    frame fixed to the one best aligned with all of them.
 //! 3. **Field** ([`super::mbo`]): the MBO scheme of Palmer et al. 2020 on
 //!    the degree-4 spherical-harmonic 9-vectors, minimizing the P1 Dirichlet
-//!    energy under the constraints, started from the single frame that best
-//!    fits all boundary normals (the projection of `Σ Y4(n_v)`).
+//!    energy under the constraints: boundary frames start as the
+//!    normal-aligned frames closest to the single frame that best fits all
+//!    boundary normals (the projection of `Σ Y4(n_v)`), the interior starts
+//!    as their harmonic extension, then diffuse–project steps with a
+//!    shrinking time step. Diffusions use sparse Cholesky on small meshes
+//!    and Jacobi-preconditioned CG above `direct_solver_max_vertices`.
 //! 4. **Outputs**: per vertex the rotation as a quaternion, its three axes,
 //!    its 9-vector and its octahedral invariants `(h0, h1, h2)` (4.23) with
 //!    the model-surface residual; singular edges ([`super::singular`]).
@@ -33,7 +37,8 @@ use super::singular::{SingularEdge, SingularReport, singular_edges, tet_frames};
 use super::stuffing::NO_TRIANGLE;
 use super::su2::C64;
 use super::volume::{
-    VolumeReport, boundary_vertex_normals, boundary_vertices, check_closed, dihedral_angle_range, lattice_spacing,
+    VolumeReport, boundary_vertex_normals, boundary_vertices_of_faces, check_closed, dihedral_angle_range, lattice_spacing,
+    tet_boundary_faces,
     tetrahedralize_enclosed_volume,
 };
 use crate::fem::tet_p1::tet_p1_operators;
@@ -312,7 +317,7 @@ pub fn compute_frame_field(surface: &TriMesh, volume: Option<&TetMesh>, opts: &F
         Some(m) => {
             m.validate()?;
             let (min_d, max_d) = dihedral_angle_range(m);
-            let b = boundary_vertices(m);
+            let b = boundary_vertices_of_faces(m.n_vertices(), &tet_boundary_faces(m));
             let rep = VolumeReport {
                 source: "uploaded".into(),
                 n_tets: m.n_tets(),
@@ -339,8 +344,9 @@ pub fn compute_frame_field(surface: &TriMesh, volume: Option<&TetMesh>, opts: &F
 
     // 2. Constraints and initial frame.
     let t = Instant::now();
-    let boundary = boundary_vertices(&mesh);
-    let constraints = boundary_constraints(&mesh, &boundary, surface, surface_triangle.as_deref(), opts.feature_angle_deg);
+    let faces = tet_boundary_faces(&mesh);
+    let boundary = boundary_vertices_of_faces(mesh.n_vertices(), &faces);
+    let constraints = boundary_constraints(&mesh, &faces, &boundary, surface, surface_triangle.as_deref(), opts.feature_angle_deg);
     let initial = best_fit_frame(&constraints);
     seconds.constraints = t.elapsed().as_secs_f64();
 
@@ -441,18 +447,18 @@ pub fn compute_frame_field(surface: &TriMesh, volume: Option<&TetMesh>, opts: &F
 /// faces (uploaded meshes), fixed frames at features of uploaded meshes.
 pub fn boundary_constraints(
     mesh: &TetMesh,
+    faces: &[[u32; 3]],
     boundary: &[bool],
     surface: &TriMesh,
     surface_triangle: Option<&[u32]>,
     feature_angle_deg: f64,
 ) -> Vec<VertexConstraint> {
-    let (face_normal, spread) = boundary_vertex_normals(mesh);
+    let (face_normal, spread) = boundary_vertex_normals(mesh, faces);
     let feature = feature_angle_deg.to_radians();
-    let faces = super::volume::tet_boundary_faces(mesh);
     // Per-vertex list of incident boundary face normals (area-weighted), only
     // needed at feature vertices.
     let mut incident: Vec<Vec<Vec3>> = vec![Vec::new(); mesh.n_vertices()];
-    for f in &faces {
+    for f in faces {
         let [a, b, c] = f.map(|v| mesh.positions[v as usize]);
         let an = (b - a).cross(&(c - a)) * 0.5;
         for &v in f {

@@ -9,8 +9,11 @@
 //! MBO step at time `τ`:
 //!
 //! 1. diffuse: solve `(M + τ K) x_c = M s_c` for the 9 components (`M` the
-//!    lumped mass), one Cholesky factorization per `τ`, reused for every
-//!    step and all 9 right-hand sides; constrained (boundary) vertices are
+//!    lumped mass), with one Cholesky factorization per `τ` reused for every
+//!    step and all 9 right-hand sides (symbolic analysis shared by all `τ`),
+//!    or, on large meshes, conjugate gradients on the same matrix
+//!    ([`super::pcg`]: a factorization costs `O(n²)` in 3D); constrained
+//!    (boundary) vertices are
 //!    held at their current value by a diagonal penalty (Dirichlet), since
 //!    with natural boundary conditions the diffusion sees a weakly anchored
 //!    boundary and MBO expels the singular curves into the boundary layer
@@ -31,12 +34,11 @@
 //! 9-vector field is far from the variety, instead of being pushed in from
 //! the boundary by a constant initial field.
 //!
-//! `τ` starts large (diffusion length `√τ` a fraction of the model size, so
-//! that the boundary constraints reach the whole volume at once), and is
-//! divided by a constant factor after the steps at one `τ` stop changing the
-//! field, down to about one squared edge length (below it the diffusion no
-//! longer moves a vertex past its projection). The factorization's symbolic
-//! analysis is done once; each new `τ` costs a numeric refactorization only.
+//! `τ` starts at a few squared edge lengths (diffusion length of a few
+//! edges) and is divided by a constant factor after the steps at one `τ`
+//! stop lowering the energy, down to about one squared edge length (below
+//! it the diffusion no longer moves a vertex past its projection). Each new
+//! `τ` costs a numeric refactorization only (or a new set of values for CG).
 
 use super::error::FramesError;
 use super::quaternion::Mat3;

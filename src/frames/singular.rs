@@ -17,12 +17,16 @@
 //! Around an interior edge `ab` the tets form a ring `T_0, …, T_{k−1}`; the
 //! holonomy `H = o_{k−1} ⋯ o_1 o_0` (in the frame of `T_0`) is exactly an
 //! element of `O`. `H = ±1`: regular. Otherwise `R_0 H R_0ᵀ` is a world
-//! rotation; when it is a quarter turn about the edge direction `ê`
-//! (oriented so that the ring turns positively about it), the edge is the
-//! centre of a 2D cross-section singularity of index `±1/4`: `+π/2` means
-//! index `+1/4`, i.e. **valence 3** (three hexahedra around the edge), `−π/2`
-//! means index `−1/4`, **valence 5**. Other holonomies (half turns, third
-//! turns, or quarter turns about another axis) are reported as *complex*.
+//! rotation by `θ ∈ {90°, 120°, 180°}` about an axis `a` (the tangent of the
+//! singular curve threading the ring). With `ê` the edge direction oriented
+//! so that the ring turns positively about it, a quarter turn with
+//! `a · ê > 0` is the centre of a 2D cross-section singularity of index
+//! `+1/4`, i.e. **valence 3** (three hexahedra around the edge), and
+//! `a · ê < 0` index `−1/4`, **valence 5**: only the sign matters, because a
+//! curve crossing the mesh obliquely is carried by edges up to ~55° off its
+//! tangent; the valence is given when `|a · ê|` exceeds the cosine of the
+//! axis tolerance. Other holonomies (half turns, third turns, or quarter
+//! turns about an axis nearly perpendicular to the edge) are *complex*.
 //!
 //! **Curves.** Around an interior vertex the holonomies of its edges
 //! multiply to the identity (the link is a sphere), so a singular edge never
@@ -178,7 +182,7 @@ struct ChunkResult {
 /// Singular edges of the field given by one frame per tet, and the report.
 /// `boundary_vertex[v]` tells which vertices lie on the boundary (for the
 /// curve check). `axis_tolerance_deg` is the largest angle between a
-/// quarter-turn holonomy axis and the edge for valence 3/5.
+/// quarter-turn holonomy axis and the (unoriented) edge for valence 3/5.
 pub fn singular_edges(mesh: &TetMesh, frame_per_tet: &[Mat3], boundary_vertex: &[bool], axis_tolerance_deg: f64) -> (Vec<SingularEdge>, SingularReport) {
     let n = mesh.n_vertices();
     let group = octa_group();

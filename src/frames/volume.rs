@@ -208,9 +208,14 @@ pub fn tet_boundary_faces(mesh: &TetMesh) -> Vec<[u32; 3]> {
 
 /// `true` for vertices on the boundary of the tetrahedral mesh.
 pub fn boundary_vertices(mesh: &TetMesh) -> Vec<bool> {
-    let mut b = vec![false; mesh.n_vertices()];
-    for f in tet_boundary_faces(mesh) {
-        for v in f {
+    boundary_vertices_of_faces(mesh.n_vertices(), &tet_boundary_faces(mesh))
+}
+
+/// `true` for the vertices of the given boundary faces.
+pub fn boundary_vertices_of_faces(n_vertices: usize, faces: &[[u32; 3]]) -> Vec<bool> {
+    let mut b = vec![false; n_vertices];
+    for f in faces {
+        for &v in f {
             b[v as usize] = true;
         }
     }
@@ -244,11 +249,11 @@ pub fn dihedral_angle_range(mesh: &TetMesh) -> (f64, f64) {
         .reduce(|| (f64::INFINITY, 0.0), |a, b| (a.0.min(b.0), a.1.max(b.1)))
 }
 
-/// Area-weighted outward normals of the boundary faces at each vertex
-/// (zero for interior vertices) and, per vertex, the largest angle (radians)
-/// between one incident face normal and that average.
-pub fn boundary_vertex_normals(mesh: &TetMesh) -> (Vec<Vec3>, Vec<f64>) {
-    let faces = tet_boundary_faces(mesh);
+/// Area-weighted outward normals of the boundary faces (from
+/// [`tet_boundary_faces`]) at each vertex (zero for interior vertices) and,
+/// per vertex, the largest angle (radians) between one incident face normal
+/// and that average.
+pub fn boundary_vertex_normals(mesh: &TetMesh, faces: &[[u32; 3]]) -> (Vec<Vec3>, Vec<f64>) {
     let n = mesh.n_vertices();
     let mut normal = vec![Vec3::zeros(); n];
     let face_normals: Vec<Vec3> = faces
