@@ -103,6 +103,18 @@ fn uploaded_volume_is_used_as_is() {
 }
 
 #[test]
+fn uploaded_volume_with_an_unused_vertex_or_no_tet() {
+    let mut vol = structured_cube(3);
+    vol.positions.push(Vec3::new(5.0, 5.0, 5.0));
+    let field = compute_frame_field(&fixtures::cube(3), Some(&vol), &FramesOptions::default(), &Progress::none()).unwrap();
+    assert_eq!(field.quaternion_per_vertex.len(), vol.n_vertices());
+    assert!(max_deviation_deg(&field.quaternion_per_vertex, &Mat3::identity()) < 1e-6);
+    let empty = TetMesh { positions: vol.positions.clone(), tets: Vec::new() };
+    let err = compute_frame_field(&fixtures::cube(3), Some(&empty), &FramesOptions::default(), &Progress::none()).unwrap_err();
+    assert!(matches!(err, FramesError::EmptyVolume));
+}
+
+#[test]
 fn ball_has_singular_curves_ending_on_the_boundary() {
     let sphere = fixtures::icosphere(3);
     let opts = FramesOptions { target_size: Some(0.16), ..Default::default() };

@@ -40,6 +40,9 @@ pub enum FramesError {
         /// The boundary loops found.
         loops: Vec<OpenLoop>,
     },
+    /// The uploaded tetrahedral mesh has no tetrahedron.
+    #[error("the uploaded volume has no tetrahedron")]
+    EmptyVolume,
     /// The uploaded (or generated) tetrahedral mesh is invalid.
     #[error("invalid tetrahedral mesh: {0}")]
     InvalidVolume(#[from] MeshError),

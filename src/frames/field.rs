@@ -246,7 +246,7 @@ pub struct FramesReport {
     pub energy_before: f64,
     /// Dirichlet energy of the final field.
     pub energy_after: f64,
-    /// Diffuse–project steps done.
+    /// Diffuse–project steps done (the harmonic start counts as one).
     pub iterations: usize,
     /// Matrices set up: harmonic start plus one per time step (numeric
     /// factorizations with Cholesky).
@@ -255,7 +255,7 @@ pub struct FramesReport {
     pub linear_solver: Option<LinearSolverKind>,
     /// Conjugate-gradient iterations in total (0 with Cholesky).
     pub pcg_iterations: usize,
-    /// Energy after each step, with its time step.
+    /// Energy after each step, with its time step (`tau` = 0: harmonic start).
     pub energy_history: Vec<EnergyRecord>,
     /// Singular edges by type and their curve structure.
     pub singular: SingularReport,
@@ -301,7 +301,8 @@ pub struct FrameField {
 /// # Errors
 /// [`FramesError::OpenSurface`] (naming the boundary loops) or
 /// [`FramesError::EmptySurface`] when there is no closed surface to fill,
-/// [`FramesError::InvalidVolume`] for an invalid uploaded mesh,
+/// [`FramesError::InvalidVolume`] or [`FramesError::EmptyVolume`] for an
+/// invalid uploaded mesh,
 /// [`FramesError::NoInterior`], [`FramesError::TooManyTets`],
 /// [`FramesError::InvalidOption`], [`FramesError::Linalg`],
 /// [`FramesError::Cancelled`].
@@ -315,6 +316,9 @@ pub fn compute_frame_field(surface: &TriMesh, volume: Option<&TetMesh>, opts: &F
     let vol_progress = progress.sub(0.0, 0.2);
     let (mesh, vol_report, surface_triangle) = match volume {
         Some(m) => {
+            if m.tets.is_empty() {
+                return Err(FramesError::EmptyVolume);
+            }
             m.validate()?;
             let (min_d, max_d) = dihedral_angle_range(m);
             let b = boundary_vertices_of_faces(m.n_vertices(), &tet_boundary_faces(m));

@@ -183,11 +183,17 @@ pub fn smooth_octahedral_field(
     let penalty: Vec<f64> = constraints.iter().map(|c| if matches!(c, VertexConstraint::Free) { 0.0 } else { 1e8 * kmax.max(1e-300) }).collect();
     let has_constraints = penalty.iter().any(|p| *p > 0.0);
     let has_free = penalty.contains(&0.0);
+    // Vertices in no tet (possible in an uploaded mesh) have empty rows:
+    // a unit diagonal keeps every matrix definite and leaves them unchanged
+    // (their defect right-hand side is 0).
+    let isolated: Vec<f64> = ops.lumped_mass.iter().map(|m| if *m > 0.0 { 0.0 } else { 1.0 }).collect();
+    let penalty_or_isolated: Vec<f64> = penalty.iter().zip(&isolated).map(|(p, i)| p + i).collect();
+    let any_isolated = isolated.iter().any(|i| *i > 0.0);
     let mut diffuser = Diffuser::new(params.solver, params.pcg_tolerance);
     let mut n_factorizations = 0;
 
     if params.harmonic_start && has_constraints && has_free {
-        let a = ops.combination(0.0, 1.0, Some(&penalty));
+        let a = ops.combination(0.0, 1.0, Some(&penalty_or_isolated));
         diffuser.set_matrix(ops, &a, &mut timer)?;
         n_factorizations += 1;
         let x = diffuser.diffuse(ops, &state.columns, 1.0, &mut timer)?;
@@ -210,7 +216,11 @@ pub fn smooth_octahedral_field(
     let mut energy_prev = history.last().map_or(energy_initial, |h: &EnergyRecord| h.energy);
     for (li, &tau) in levels.iter().enumerate() {
         progress.check()?;
-        let a = ops.combination(1.0, tau, if dirichlet { Some(&penalty) } else { None });
+        let a = ops.combination(
+            1.0,
+            tau,
+            if dirichlet { Some(&penalty_or_isolated) } else if any_isolated { Some(&isolated) } else { None },
+        );
         diffuser.set_matrix(ops, &a, &mut timer)?;
         n_factorizations += 1;
         for step in 0..params.max_steps_per_level {

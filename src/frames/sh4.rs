@@ -364,6 +364,13 @@ pub fn nearest_frame_to_tolerance(s: &[f64; 9], hint: Option<&Mat3>, accept: f64
     best.unwrap_or_else(|| project_from(s, &Mat3::identity(), 50, tol))
 }
 
+/// The frame quaternion (unit, `q0 ≥ 0`) of the frame closest to the
+/// 9-vector `s` (global search): the inverse of [`sh9_from_quaternion`] up
+/// to the octahedral group.
+pub fn quaternion_from_sh9(s: &[f64; 9]) -> Quat {
+    Quat::from_matrix(&nearest_frame(s, None, 0.0).rotation)
+}
+
 /// A rotation `R_n` with `R_n e_z = n` (`−n` when `n_z < 0`, the same
 /// family of frames), the shortest rotation from `e_z` (thesis §4.2).
 pub fn z_to_axis_rotation(n: &Vec3) -> Mat3 {
@@ -621,6 +628,11 @@ mod tests {
         for _ in 0..100 {
             let r = random_rotation(&mut rng);
             let s = sh9_from_rotation(&r);
+            // Quaternion ↔ 9-vector, up to the 48 elements of O.
+            let q = quaternion_from_sh9(&s);
+            let q_in = Quat::from_matrix(&r);
+            let best = super::super::groups::binary_octahedral_group().iter().map(|o| q_in.mul(o).dot(&q).abs()).fold(0.0, f64::max);
+            assert!((best - 1.0).abs() < 1e-12, "{best}");
             let p = nearest_frame(&s, None, 1e-9);
             assert!((p.alignment - 1.0).abs() < 1e-12);
             // rᵀ p.rotation must be a cube rotation.
