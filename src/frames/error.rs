@@ -40,6 +40,10 @@ pub enum FramesError {
         /// The boundary loops found.
         loops: Vec<OpenLoop>,
     },
+    /// The surface fails its invariants (index out of range, non-finite
+    /// coordinate, repeated vertex).
+    #[error("invalid surface: {0}")]
+    InvalidSurface(MeshError),
     /// The uploaded tetrahedral mesh has no tetrahedron.
     #[error("the uploaded volume has no tetrahedron")]
     EmptyVolume,

@@ -55,11 +55,12 @@ use std::time::Instant;
 pub struct FramesOptions {
     /// Lattice spacing of the generated volume mesh, model units (interior
     /// edges are `h` and `0.87 h` long). Default `None`: the mean edge length
-    /// of the surface, enlarged when the estimate `12 V / h³` exceeds
-    /// `max_tets`. Ignored for an uploaded tetrahedral mesh.
+    /// of the surface, enlarged when the estimate `12 V / h³` or the lattice
+    /// exceeds `max_tets`. Ignored for an uploaded tetrahedral mesh.
     pub target_size: Option<f64>,
-    /// Largest estimated number of tetrahedra for a generated volume.
-    /// Default 2 000 000.
+    /// Largest estimated number of tetrahedra for a generated volume (also
+    /// bounds the lattice over the bounding box to 4 cells per tet, i.e.
+    /// the mesher's memory). Default 2 000 000.
     pub max_tets: usize,
     /// Isosurface-stuffing warp threshold on long lattice edges, fraction of
     /// the edge length. Default 0.24999 (Labelle & Shewchuk).
@@ -301,6 +302,7 @@ pub struct FrameField {
 /// # Errors
 /// [`FramesError::OpenSurface`] (naming the boundary loops) or
 /// [`FramesError::EmptySurface`] when there is no closed surface to fill,
+/// [`FramesError::InvalidSurface`] for an invalid surface,
 /// [`FramesError::InvalidVolume`] or [`FramesError::EmptyVolume`] for an
 /// invalid uploaded mesh,
 /// [`FramesError::NoInterior`], [`FramesError::TooManyTets`],
@@ -335,6 +337,7 @@ pub fn compute_frame_field(surface: &TriMesh, volume: Option<&TetMesh>, opts: &F
             (m.clone(), rep, None)
         }
         None => {
+            surface.validate().map_err(FramesError::InvalidSurface)?;
             check_closed(surface)?;
             let (h, capped) = lattice_spacing(surface, opts.target_size, opts.max_tets)?;
             let (stuffed, mut rep) = tetrahedralize_enclosed_volume(surface, h, opts.alpha_long, opts.alpha_short)?;

@@ -89,36 +89,63 @@ pub fn check_closed(surface: &TriMesh) -> Result<(), FramesError> {
     })
 }
 
+/// Lattice cells allowed per requested tetrahedron: the lattice covers the
+/// bounding box, which can be much larger than the volume (a thin diagonal
+/// rod, far-apart parts); 4 cells (about 80 bytes of lattice data) per
+/// allowed tet bounds the memory of the mesher.
+pub const LATTICE_CELLS_PER_TET: f64 = 4.0;
+
 /// The lattice spacing for `surface`: `target_size` if given (error if it
-/// would exceed `max_tets`), else the mean edge length enlarged as needed.
-/// Returns `(spacing, capped)`.
+/// would exceed `max_tets`), else the mean edge length, enlarged until both
+/// the estimated tet count `12 V / h³` fits `max_tets` and the lattice over
+/// the bounding box has at most [`LATTICE_CELLS_PER_TET`]` · max_tets`
+/// cells. Returns `(spacing, capped)`.
 ///
 /// # Errors
 /// [`FramesError::InvalidOption`] for a non-positive size,
 /// [`FramesError::TooManyTets`] for an explicit size that is too small.
 pub fn lattice_spacing(surface: &TriMesh, target_size: Option<f64>, max_tets: usize) -> Result<(f64, bool), FramesError> {
     let volume = surface.signed_volume().abs();
-    let estimate = |h: f64| 12.0 * volume / (h * h * h);
+    let ext = surface.bounding_box().map_or(Vec3::zeros(), |b| b.max - b.min);
+    let tets = |h: f64| 12.0 * volume / (h * h * h);
+    let cells = |h: f64| (ext.x / h + 4.0) * (ext.y / h + 4.0) * (ext.z / h + 4.0);
+    let max_cells = LATTICE_CELLS_PER_TET * max_tets as f64;
+    // Both counts decrease with h: the cap is the largest of the two limits.
+    let fits = |h: f64| tets(h) <= max_tets as f64 && cells(h) <= max_cells;
     if let Some(h) = target_size {
         if !(h > 0.0) || !h.is_finite() {
             return Err(FramesError::InvalidOption { name: "target_size", reason: format!("must be a positive length, got {h}") });
         }
-        let n = estimate(h);
-        if n > max_tets as f64 {
-            return Err(FramesError::TooManyTets { target_size: h, estimated_tets: n as u64, max_tets });
+        if !fits(h) {
+            let estimated = tets(h).max(cells(h) / LATTICE_CELLS_PER_TET);
+            return Err(FramesError::TooManyTets { target_size: h, estimated_tets: estimated.min(u64::MAX as f64) as u64, max_tets });
         }
         return Ok((h, false));
     }
+    let diag = ext.norm();
     let mut h = surface.mean_edge_length();
-    let diag = surface.bounding_box().map_or(1.0, |b| b.diagonal());
     if !(h > 0.0) {
         h = diag / 20.0;
     }
-    let n = estimate(h);
-    if n > max_tets as f64 {
-        return Ok(((12.0 * volume / max_tets as f64).cbrt(), true));
+    if !(h > 0.0) {
+        return Ok((1.0, false));
     }
-    Ok((h, false))
+    if fits(h) {
+        return Ok((h, false));
+    }
+    // Smallest h that fits: the volume bound in closed form, then doubling
+    // and bisection for the lattice bound.
+    let mut lo = h;
+    let mut hi = h.max((12.0 * volume / max_tets as f64).cbrt());
+    while !fits(hi) {
+        lo = hi;
+        hi *= 2.0;
+    }
+    for _ in 0..60 {
+        let mid = 0.5 * (lo + hi);
+        if fits(mid) { hi = mid } else { lo = mid }
+    }
+    Ok((hi, true))
 }
 
 /// Tetrahedralize the volume enclosed by the closed `surface` with lattice
@@ -316,7 +343,18 @@ mod tests {
         let (h, capped) = lattice_spacing(&cube, None, 1_000_000).unwrap();
         assert!(!capped && (h - cube.mean_edge_length()).abs() < 1e-15);
         let (h, capped) = lattice_spacing(&cube, None, 100).unwrap();
-        assert!(capped && (12.0 * 8.0 / h.powi(3) - 100.0).abs() < 1e-6);
+        let cells = (2.0 / h + 4.0).powi(3);
+        assert!(capped && 12.0 * 8.0 / h.powi(3) <= 100.0 && cells <= 400.0 * (1.0 + 1e-9));
+        assert!((12.0 * 8.0 / h.powi(3) - 100.0).abs() < 1e-6 || (cells - 400.0).abs() < 1e-6);
+        // Far-apart parts: the lattice over the bounding box is the limit.
+        let mut two = fixtures::icosphere(1);
+        let n = two.positions.len() as u32;
+        two.positions.extend(fixtures::icosphere(1).positions.iter().map(|p| p + Vec3::new(1000.0, 0.0, 0.0)));
+        let tris: Vec<_> = two.triangles.iter().map(|t| t.map(|v| crate::mesh::VertexId(v.0 + n))).collect();
+        two.triangles.extend(tris);
+        let (h, capped) = lattice_spacing(&two, None, 10_000).unwrap();
+        assert!(capped && (1000.0 / h + 4.0) * (2.0 / h + 4.0).powi(2) <= 40_000.0 * (1.0 + 1e-9));
+        assert!(matches!(lattice_spacing(&two, Some(0.05), 10_000), Err(FramesError::TooManyTets { .. })));
         assert!(matches!(lattice_spacing(&cube, Some(0.01), 1000), Err(FramesError::TooManyTets { .. })));
         assert!(matches!(lattice_spacing(&cube, Some(-1.0), 1000), Err(FramesError::InvalidOption { .. })));
     }
