@@ -104,8 +104,10 @@ pub fn frame_quaternion_from_invariants(h: &[C64; 3]) -> Quat {
 /// The 96 pairs of the printed branches `k0..k4` of §4, in the order
 /// `k0, k1, k2, k3, k4` (outermost first), *before* the (4.22) correction.
 /// Exactly half belong to the groupset of `h`, the other half to that of
-/// `(h0, h1, −h2)`. Uses the exact-zero switches of the thesis
-/// (`h1 = 0`, `f̃0 = 0`, `uv = 0`), so it is meant for exposition and tests.
+/// `(h0, h1, −h2)`. Uses the switches of the thesis (`h1 = 0`, `f̃0 = 0`,
+/// `f̃0 = f̃1`), tested up to a relative 1e-12 (an exact test sends round-off
+/// into the wrong branch), so it is meant for exposition and tests; near the
+/// degenerate points its results carry only half of the digits.
 pub fn thesis_inverse_branches(h: &[C64; 3]) -> Vec<Su2> {
     let [h0, h1, h2] = *h;
     let zero = C64::new(0.0, 0.0);
@@ -116,17 +118,20 @@ pub fn thesis_inverse_branches(h: &[C64; 3]) -> Vec<Su2> {
         let sign0 = if k0 == 0 { 1.0 } else { -1.0 };
         let g1 = h0;
         let g0 = h1.sqrt() * sign0;
-        let g2 = if h1 != zero { h2 / g0 } else { (h0 * h0 * h0).sqrt() * sign0 };
+        // Scale of the forms: |h0| ~ r⁸, |h1| ~ r¹², |h2| ~ r¹⁸.
+        let r2 = h0.norm().powf(0.25).max(h1.norm().powf(1.0 / 6.0)).max(h2.norm().powf(1.0 / 9.0));
+        let g2 = if h1.norm() > 1e-12 * r2.powi(6) { h2 / g0 } else { (h0 * h0 * h0).sqrt() * sign0 };
         let c = C64::new(0.0, 3.0 * TWO_SQRT3) * g0 * g0;
         for k1 in 0..3u32 {
             let t0 = omega(k1) * (g2 + c).cbrt();
-            let t1 = if t0 != zero { g1 / t0 } else { omega(k1) * (g2 - c).cbrt() };
+            let t1 = if t0.norm() > 1e-12 * r2.powi(2) { g1 / t0 } else { omega(k1) * (g2 - c).cbrt() };
+            let distinct = (t0 - t1).norm() > 1e-12 * r2.powi(2);
             let p = (t0 - t1) / C64::new(0.0, 2.0 * TWO_SQRT3);
             for k2 in 0..2u32 {
                 for k3 in 0..4u32 {
                     for k4 in 0..2u32 {
                         let sign4 = if k4 == 0 { 1.0 } else { -1.0 };
-                        if t0 != t1 {
+                        if distinct {
                             let root = (t0 * t0 + t0 * t1 + t1 * t1).sqrt() * (3f64.sqrt() / 6.0);
                             let v4 = (t0 + t1) * 0.25 + if k2 == 0 { root } else { -root };
                             let v = i_pow(k3) * v4.sqrt().sqrt();
@@ -336,6 +341,43 @@ mod tests {
                 assert!(set.iter().any(|p| (p.u - target.u).norm() + (p.v - target.v).norm() < 1e-9));
             }
             assert!(set.iter().all(|p| model_surface_relative_residual(&octahedral_forms(p)) < 1e-13));
+        }
+    }
+
+    #[test]
+    fn printed_branches_cover_the_degenerate_points() {
+        // (u, v) = (1, 0): h = (1, 0, 0), so h1 = 0 (the √(h0³) branch of
+        // g2), f̃0 = f̃1 on one branch (uv = 0) and u⁴ = v⁴ on the others;
+        // h2 = 0 makes both groupsets the same. Also a point with u⁴ = v⁴,
+        // uv ≠ 0 and one with h0 = 0 (f̃0 = 0 on a branch).
+        let r = std::f64::consts::FRAC_1_SQRT_2;
+        let z4 = C64::new(-7.0 + 48f64.sqrt(), 0.0);
+        let u_h0 = z4.sqrt().sqrt();
+        let n = (u_h0.norm_sqr() + 1.0).sqrt();
+        for pair in [
+            Su2 { u: C64::new(1.0, 0.0), v: C64::new(0.0, 0.0) },
+            Su2 { u: C64::new(r, 0.0), v: C64::new(0.0, r) },
+            Su2 { u: u_h0 / n, v: C64::new(1.0 / n, 0.0) },
+        ] {
+            let h = octahedral_forms(&pair);
+            let flipped = [h[0], h[1], -h[2]];
+            let branches = thesis_inverse_branches(&h);
+            assert_eq!(branches.len(), 96);
+            // The printed formulas lose half of the digits here (a double root
+            // of the quadratic for v⁴ under a square root): 1e-6, not 1e-12.
+            let loose = |a: &[C64; 3], b: &[C64; 3]| (0..3).all(|k| (a[k] - b[k]).norm() < 1e-6);
+            let close = |a: &[C64; 3], b: &[C64; 3]| (0..3).all(|k| (a[k] - b[k]).norm() < 1e-12);
+            let bad: Vec<usize> = (0..96)
+                .filter(|&i| {
+                    let hp = octahedral_forms(&branches[i]);
+                    !(loose(&hp, &h) || loose(&hp, &flipped))
+                })
+                .collect();
+            assert!(bad.is_empty(), "{pair:?}: h {h:?}, bad branches {bad:?}, e.g. {:?}", bad.first().map(|&i| (branches[i], octahedral_forms(&branches[i]))));
+            let set = groupset_from_invariants(&h);
+            assert_eq!(set.len(), 48, "{pair:?}");
+            // After the (4.22) correction and the polish: exact to round-off.
+            assert!(set.iter().all(|p| close(&octahedral_forms(p), &h) && (p.norm_squared() - 1.0).abs() < 1e-12));
         }
     }
 
