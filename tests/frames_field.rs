@@ -204,3 +204,19 @@ fn report_serializes_and_progress_is_monotone() {
     assert!(v["energy_history"].as_array().is_some_and(|h| !h.is_empty() && h.iter().all(|r| r["energy"].is_f64())));
     assert!(v["singular"]["n_valence3"].is_u64() && v["seconds"]["total"].is_f64());
 }
+
+#[test]
+fn results_do_not_depend_on_the_thread_count() {
+    use meshatlas::frames::mbo::LinearSolverKind;
+    let sphere = fixtures::icosphere(2);
+    let opts = FramesOptions { target_size: Some(0.2), linear_solver: Some(LinearSolverKind::Pcg), ..Default::default() };
+    let run = |threads| {
+        let pool = rayon::ThreadPoolBuilder::new().num_threads(threads).build().unwrap();
+        pool.install(|| compute_frame_field(&sphere, None, &opts, &Progress::none()).unwrap())
+    };
+    let (a, b) = (run(1), run(3));
+    assert_eq!(a.volume, b.volume);
+    assert_eq!(a.quaternion_per_vertex, b.quaternion_per_vertex);
+    assert_eq!(a.singular_edges, b.singular_edges);
+    assert_eq!(a.report.energy_after.to_bits(), b.report.energy_after.to_bits());
+}

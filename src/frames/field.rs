@@ -533,18 +533,24 @@ fn mesh_diagonal(mesh: &TetMesh) -> f64 {
     crate::geom::BoundingBox::of_points(&mesh.positions).map_or(1.0, |b| b.diagonal())
 }
 
-/// Mean edge length over the 6 edges of every tet.
+/// Mean edge length over the 6 edges of every tet (partial sums over fixed
+/// chunks, added in order: independent of the thread count).
 pub fn mean_tet_edge_length(mesh: &TetMesh) -> f64 {
     if mesh.tets.is_empty() {
         return 0.0;
     }
-    let sum: f64 = mesh
+    let partial: Vec<f64> = mesh
         .tets
-        .par_iter()
-        .map(|t| {
-            let p = t.map(|v| mesh.positions[v.idx()]);
-            crate::fem::tet_p1::TET_EDGES.iter().map(|[i, j]| (p[*i] - p[*j]).norm()).sum::<f64>()
+        .par_chunks(4096)
+        .map(|chunk| {
+            chunk
+                .iter()
+                .map(|t| {
+                    let p = t.map(|v| mesh.positions[v.idx()]);
+                    crate::fem::tet_p1::TET_EDGES.iter().map(|[i, j]| (p[*i] - p[*j]).norm()).sum::<f64>()
+                })
+                .sum::<f64>()
         })
-        .sum();
-    sum / (6.0 * mesh.tets.len() as f64)
+        .collect();
+    partial.iter().sum::<f64>() / (6.0 * mesh.tets.len() as f64)
 }
