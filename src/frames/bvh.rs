@@ -138,8 +138,14 @@ impl TriangleBvh {
             return None;
         }
         let mut best = (f64::INFINITY, Vec3::zeros(), 0u32);
-        let mut stack = vec![(box_distance2(x, &self.nodes[0].lo, &self.nodes[0].hi), 0u32)];
-        while let Some((d2, ni)) = stack.pop() {
+        // The tree is balanced (median splits), so its depth is below 40 and
+        // the stack grows by at most one entry per level.
+        let mut stack = [(0.0f64, 0u32); 80];
+        stack[0] = (box_distance2(x, &self.nodes[0].lo, &self.nodes[0].hi), 0);
+        let mut sp = 1;
+        while sp > 0 {
+            sp -= 1;
+            let (d2, ni) = stack[sp];
             if d2 >= best.0 * best.0 {
                 continue;
             }
@@ -157,13 +163,13 @@ impl TriangleBvh {
                 let dl = box_distance2(x, &self.nodes[l as usize].lo, &self.nodes[l as usize].hi);
                 let dr = box_distance2(x, &self.nodes[r as usize].lo, &self.nodes[r as usize].hi);
                 // Visit the nearer child first (pushed last).
-                if dl < dr {
-                    stack.push((dr, r));
-                    stack.push((dl, l));
-                } else {
-                    stack.push((dl, l));
-                    stack.push((dr, r));
+                if sp + 2 > stack.len() {
+                    continue;
                 }
+                let (first, second) = if dl < dr { ((dr, r), (dl, l)) } else { ((dl, l), (dr, r)) };
+                stack[sp] = first;
+                stack[sp + 1] = second;
+                sp += 2;
             }
         }
         Some(best)
