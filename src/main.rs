@@ -1,5 +1,288 @@
 //! Command-line entry point: `meshatlas serve` and `meshatlas run`.
+//!
+//! Parses flags (each also readable from a `MESHATLAS_*` environment
+//! variable), builds the configuration and calls the library.
 
-fn main() {
-    println!("meshatlas {}", env!("CARGO_PKG_VERSION"));
+use std::io::IsTerminal;
+use std::path::PathBuf;
+use std::sync::Arc;
+use std::time::Duration;
+
+use clap::{Args, Parser, Subcommand};
+
+use meshatlas::http::{AppState, HttpLimits};
+use meshatlas::jobs::{Delayed, Executor, JobService, JobsConfig, pipeline_executor::PipelineExecutor};
+use meshatlas::pipeline::{PipelineParams, StageName, parse_params, run_pipeline};
+use meshatlas::progress::{Progress, ProgressSink};
+
+#[derive(Parser)]
+#[command(name = "meshatlas", version, about = "Atlas, crossfield and 3D frames of surface triangulations")]
+struct Cli {
+    #[command(subcommand)]
+    command: Command,
+}
+
+#[derive(Subcommand)]
+enum Command {
+    /// Run the HTTP job service.
+    Serve(ServeArgs),
+    /// Run the pipeline on one file, offline.
+    Run(RunArgs),
+}
+
+#[derive(Args)]
+struct ServeArgs {
+    /// Address to listen on (port 0 picks a free port; the bound address is
+    /// printed as `listening on ADDR`).
+    #[arg(long, env = "MESHATLAS_ADDR", default_value = "127.0.0.1:8080")]
+    addr: String,
+    /// Directory for the job database, uploads and artifacts.
+    #[arg(long, env = "MESHATLAS_DATA_DIR", default_value = "./data")]
+    data_dir: PathBuf,
+    /// Jobs run at the same time.
+    #[arg(long, env = "MESHATLAS_WORKERS", default_value_t = 1)]
+    workers: usize,
+    /// Largest accepted upload in bytes (413 beyond).
+    #[arg(long, env = "MESHATLAS_MAX_UPLOAD_BYTES", default_value_t = 512 * 1024 * 1024)]
+    max_upload_bytes: u64,
+    /// Most jobs waiting in the queue (429 beyond).
+    #[arg(long, env = "MESHATLAS_MAX_QUEUED", default_value_t = 64)]
+    max_queued: usize,
+    /// Server-wide triangle cap (jobs above fail with too-many-triangles).
+    #[arg(long, env = "MESHATLAS_MAX_TRIANGLES", default_value_t = 5_000_000)]
+    max_triangles: usize,
+    /// Wall-time limit of one job, in seconds.
+    #[arg(long, env = "MESHATLAS_JOB_TIMEOUT_SECS", default_value_t = 3600.0)]
+    job_timeout_secs: f64,
+    /// Times a job may be interrupted by a crash before it is failed.
+    #[arg(long, env = "MESHATLAS_MAX_ATTEMPTS", default_value_t = 3)]
+    max_attempts: u32,
+    /// Retry-After seconds sent with 429.
+    #[arg(long, env = "MESHATLAS_RETRY_AFTER_SECS", default_value_t = 10)]
+    retry_after_secs: u64,
+    /// Testing only: wait this long (cancellably) before each job, so tests
+    /// can kill the server mid-job.
+    #[arg(long, env = "MESHATLAS_TEST_JOB_DELAY_MS", hide = true)]
+    test_job_delay_ms: Option<u64>,
+}
+
+#[derive(Args)]
+struct RunArgs {
+    /// Input mesh (STL, OBJ, PLY, MSH).
+    input: PathBuf,
+    /// Output directory (created if missing).
+    #[arg(long)]
+    out: PathBuf,
+    /// Comma-separated stages to run (overrides `stages` in --params).
+    #[arg(long, value_delimiter = ',')]
+    stages: Option<Vec<String>>,
+    /// Pipeline parameters as a JSON file (same schema as the API's `params`).
+    #[arg(long)]
+    params: Option<PathBuf>,
+    /// Input format (stl, obj, ply, msh); detected when omitted.
+    #[arg(long)]
+    format: Option<String>,
+    /// Print the whole report as JSON instead of the text summary.
+    #[arg(long)]
+    json: bool,
+}
+
+fn init_logging() {
+    let filter = tracing_subscriber::EnvFilter::try_from_env("MESHATLAS_LOG")
+        .or_else(|_| tracing_subscriber::EnvFilter::try_from_default_env())
+        .unwrap_or_else(|_| tracing_subscriber::EnvFilter::new("info"));
+    tracing_subscriber::fmt()
+        .with_env_filter(filter)
+        .with_writer(std::io::stderr)
+        .with_ansi(std::io::stderr().is_terminal())
+        .init();
+}
+
+fn main() -> std::process::ExitCode {
+    let cli = Cli::parse();
+    meshatlas::linalg::use_sequential_kernels();
+    let result = match cli.command {
+        Command::Serve(args) => {
+            init_logging();
+            meshatlas::jobs::install_panic_hook();
+            serve(args)
+        }
+        Command::Run(args) => {
+            if std::env::var_os("MESHATLAS_LOG").is_some() || std::env::var_os("RUST_LOG").is_some() {
+                init_logging();
+            }
+            run(args)
+        }
+    };
+    match result {
+        Ok(()) => std::process::ExitCode::SUCCESS,
+        Err(msg) => {
+            eprintln!("meshatlas: {msg}");
+            std::process::ExitCode::FAILURE
+        }
+    }
+}
+
+fn serve(args: ServeArgs) -> Result<(), String> {
+    if !(args.job_timeout_secs.is_finite() && args.job_timeout_secs > 0.0) {
+        return Err(format!("--job-timeout-secs must be positive, got {}", args.job_timeout_secs));
+    }
+    let config = JobsConfig {
+        workers: args.workers.max(1),
+        max_queued: args.max_queued,
+        job_timeout: Duration::from_secs_f64(args.job_timeout_secs),
+        max_attempts: args.max_attempts.max(1),
+        max_triangles: args.max_triangles,
+        ..JobsConfig::new(&args.data_dir)
+    };
+    let executor: Arc<dyn Executor> = match args.test_job_delay_ms {
+        Some(ms) => Arc::new(Delayed { inner: PipelineExecutor, delay: Duration::from_millis(ms) }),
+        None => Arc::new(PipelineExecutor),
+    };
+    let limits = HttpLimits { max_upload_bytes: args.max_upload_bytes, retry_after_secs: args.retry_after_secs };
+    let rt = tokio::runtime::Builder::new_multi_thread()
+        .enable_all()
+        .build()
+        .map_err(|e| format!("cannot start the async runtime: {e}"))?;
+    rt.block_on(async move {
+        let jobs = JobService::start(config, executor).map_err(|e| e.to_string())?;
+        let listener = tokio::net::TcpListener::bind(&args.addr)
+            .await
+            .map_err(|e| format!("cannot listen on {}: {e}", args.addr))?;
+        let addr = listener.local_addr().map_err(|e| e.to_string())?;
+        println!("listening on {addr}");
+        tracing::info!(%addr, "listening");
+        let state = AppState { jobs: jobs.clone(), limits: Arc::new(limits) };
+        meshatlas::http::serve(listener, state, shutdown_signal()).await.map_err(|e| e.to_string())?;
+        jobs.shutdown(Duration::from_secs(10)).await;
+        Ok(())
+    })
+}
+
+/// Resolves on Ctrl-C or SIGTERM.
+async fn shutdown_signal() {
+    let ctrl_c = async {
+        let _ = tokio::signal::ctrl_c().await;
+    };
+    #[cfg(unix)]
+    let term = async {
+        match tokio::signal::unix::signal(tokio::signal::unix::SignalKind::terminate()) {
+            Ok(mut s) => {
+                s.recv().await;
+            }
+            Err(_) => std::future::pending::<()>().await,
+        }
+    };
+    #[cfg(not(unix))]
+    let term = std::future::pending::<()>();
+    tokio::select! {
+        () = ctrl_c => {},
+        () = term => {},
+    }
+    tracing::info!("shutting down");
+}
+
+/// Draws an indicatif bar on stderr (only when stderr is a terminal).
+struct Bar(indicatif::ProgressBar);
+
+impl ProgressSink for Bar {
+    fn report(&self, stage: &str, fraction: f64) {
+        self.0.set_message(stage.to_string());
+        self.0.set_position((fraction.clamp(0.0, 1.0) * 1000.0) as u64);
+    }
+}
+
+/// Peak resident set size of this process in kB (Linux `VmHWM`).
+fn peak_rss_kb() -> Option<u64> {
+    let status = std::fs::read_to_string("/proc/self/status").ok()?;
+    let line = status.lines().find(|l| l.starts_with("VmHWM:"))?;
+    line.split_whitespace().nth(1)?.parse().ok()
+}
+
+fn run(args: RunArgs) -> Result<(), String> {
+    let mut params = match &args.params {
+        Some(path) => {
+            let text = std::fs::read(path).map_err(|e| format!("cannot read {}: {e}", path.display()))?;
+            parse_params(&text).map_err(|e| match &e.field {
+                Some(f) => format!("{}: parameter `{f}`: {}", path.display(), e.message),
+                None => format!("{}: {}", path.display(), e.message),
+            })?
+        }
+        None => PipelineParams::default(),
+    };
+    if let Some(stages) = &args.stages {
+        params.stages = stages
+            .iter()
+            .map(|s| s.trim())
+            .filter(|s| !s.is_empty())
+            .map(StageName::parse)
+            .collect::<Result<_, _>>()?;
+    }
+    let format = match args.format.as_deref() {
+        Some(name) => Some(
+            meshatlas::io::Format::from_name(name)
+                .ok_or_else(|| format!("unknown format `{name}` (expected stl, obj, ply or msh)"))?,
+        ),
+        None => None,
+    };
+    let progress = if std::io::stderr().is_terminal() {
+        let bar = indicatif::ProgressBar::new(1000);
+        bar.set_style(
+            indicatif::ProgressStyle::with_template("{spinner} [{elapsed_precise}] {wide_bar} {percent:>3}% {msg}")
+                .unwrap_or_else(|_| indicatif::ProgressStyle::default_bar()),
+        );
+        bar.enable_steady_tick(Duration::from_millis(200));
+        Progress::new(Arc::new(Bar(bar)), Arc::new(std::sync::atomic::AtomicBool::new(false)))
+    } else {
+        Progress::none()
+    };
+    let result = run_pipeline(&args.input, format, &params, &args.out, &progress);
+    drop(progress);
+    let report = result.map_err(|e| format!("{}: {e} [{}]", args.input.display(), e.kind()))?;
+    let peak = peak_rss_kb();
+    if args.json {
+        let mut v = serde_json::to_value(&report).map_err(|e| e.to_string())?;
+        v["peak_rss_kb"] = serde_json::json!(peak);
+        println!("{}", serde_json::to_string_pretty(&v).map_err(|e| e.to_string())?);
+        return Ok(());
+    }
+    println!("input      {} ({}, {} bytes)", report.input.name, report.input.format, report.input.bytes);
+    println!("surface    {} vertices, {} triangles", report.input.n_vertices, report.input.n_triangles);
+    if let Some(n) = report.input.n_tets {
+        println!("volume     {n} tetrahedra");
+    }
+    let r = serde_json::to_value(&report.repair).map_err(|e| e.to_string())?;
+    let n = |k: &str| r.get(k).and_then(serde_json::Value::as_i64).unwrap_or(0);
+    println!(
+        "repair     welded {} vertices, removed {} triangles, flipped {}, dropped {} unreferenced vertices",
+        n("n_vertices_welded_exact") + n("n_vertices_welded_tolerance"),
+        n("n_zero_area_triangles_removed") + n("n_degenerate_triangles_removed") + n("n_duplicate_triangles_removed"),
+        n("n_triangles_flipped"),
+        n("n_unreferenced_vertices_dropped"),
+    );
+    println!(
+        "topology   {} components, {} boundary loops, χ = {}, genus {}, {} non-manifold edges, {} non-manifold vertices",
+        n("n_components"),
+        n("n_boundary_loops"),
+        n("euler_characteristic"),
+        r.get("genus").map(ToString::to_string).unwrap_or_else(|| "-".into()),
+        n("n_nonmanifold_edges"),
+        n("n_nonmanifold_vertices"),
+    );
+    for (name, summary) in &report.stages {
+        println!("{name:<10} {}", serde_json::to_string(summary).map_err(|e| e.to_string())?);
+    }
+    for t in &report.timings {
+        println!("time       {:<10} {:>10.3} s", t.step, t.seconds);
+    }
+    println!("time       {:<10} {:>10.3} s", "total", report.total_seconds);
+    for a in &report.artifacts {
+        println!("wrote      {} ({} bytes)", args.out.join(&a.name).display(), a.bytes);
+    }
+    println!("wrote      {}", args.out.join(meshatlas::pipeline::REPORT_NAME).display());
+    match peak {
+        Some(kb) => println!("peak_rss_kb {kb}"),
+        None => println!("peak_rss_kb unknown"),
+    }
+    Ok(())
 }

@@ -16,10 +16,10 @@ use super::features::{FeatureCurve, Features, detect_features, edge_chains, mode
 use super::mvc::{MvcSolver, mean_value_parameterization};
 use super::options::AtlasOptions;
 use super::partition::split_patch;
-use super::patch::{PatchDefect, PatchMesh};
+use super::patch::PatchMesh;
 use super::refine::bisect_inner_edges;
-use super::report::{AtlasReport, PatchReport, SplitCounts};
-use super::verify::{check_map, min_and_median, sigma_ratios};
+use super::report::{AtlasReport, PatchReport, SplitCounts, SplitReason};
+use super::verify::{area_distortion, check_map, min_and_median, sigma_ratios};
 use crate::geom::Vec2;
 use crate::mesh::{EdgeId, FaceId, Topology, TriMesh, VertexId};
 use crate::progress::Progress;
@@ -95,12 +95,7 @@ struct DonePatch {
 /// What became of one patch in one generation.
 enum Outcome {
     Done(Box<DonePatch>),
-    Split {
-        pieces: Vec<Vec<FaceId>>,
-        defect: Option<PatchDefect>,
-        map_failed: bool,
-        depth: usize,
-    },
+    Split { pieces: Vec<Vec<FaceId>>, reason: SplitReason, depth: usize },
 }
 
 /// Build the atlas of `mesh` (welded and consistently oriented).
@@ -145,13 +140,8 @@ pub fn build_atlas(
                     n_done += p.input_faces.len();
                     done.push(*p);
                 }
-                Outcome::Split {
-                    pieces,
-                    defect,
-                    map_failed,
-                    depth,
-                } => {
-                    splits.count(defect, map_failed);
+                Outcome::Split { pieces, reason, depth } => {
+                    splits.count(reason);
                     pending.extend(pieces.into_iter().map(|p| (p, depth)));
                 }
             }
@@ -195,8 +185,7 @@ fn process_patch(
         let pieces = split_patch(&patch)?;
         return Ok(Outcome::Split {
             pieces,
-            defect,
-            map_failed: false,
+            reason: defect.map_or(SplitReason::Size, SplitReason::Topology),
             depth,
         });
     }
@@ -204,13 +193,13 @@ fn process_patch(
     let n_original = patch.mesh.n_vertices();
     let interior_fraction = patch.n_interior_vertices() as f64 / n_original as f64;
     let (work, source_local_face, n_bisections) =
-        if interior_fraction < opts.refine_below_interior_fraction {
+        if interior_fraction < opts.refine_below_interior_fraction && !is_planar(&patch.mesh) {
             let target = mean_boundary_edge_length(&patch);
             let r = bisect_inner_edges(
                 &patch.mesh,
                 target,
                 opts.refine_max_passes,
-                opts.max_patch_triangles.max(patch.n_faces()) * 4,
+                refined_size_cap(patch.n_faces(), opts),
             );
             let refined = PatchMesh {
                 global_vertices: patch.global_vertices.clone(),
@@ -251,10 +240,15 @@ fn process_patch(
         let pieces = split_patch(&patch)?;
         return Ok(Outcome::Split {
             pieces,
-            defect: None,
-            map_failed: true,
+            reason: SplitReason::MapFailed,
             depth: depth + 1,
         });
+    }
+    let distortion = area_distortion(&work, &param.uv);
+    if distortion > opts.max_area_distortion && depth < opts.max_split_depth && patch.n_faces() >= 2 {
+        // One-to-one but too compressed somewhere for a mesh generator: split.
+        let pieces = split_patch(&patch)?;
+        return Ok(Outcome::Split { pieces, reason: SplitReason::Distortion, depth: depth + 1 });
     }
     let sigma = sigma_ratios(&work, &param.uv);
     let (sigma_min, sigma_median) = min_and_median(&sigma);
@@ -274,6 +268,7 @@ fn process_patch(
         sigma_ratio_median: sigma_median,
         sigma_ratio_jump_median: sigma_jump_median(&work, &sigma),
         min_relative_uv_area: check.min_relative_area,
+        area_distortion: distortion,
         n_map_splits: depth,
         solver: param.solver,
         krylov_iterations: param.iterations,
@@ -288,6 +283,32 @@ fn process_patch(
         sigma,
         report,
     })))
+}
+
+/// Relative flatness under which a patch counts as planar: the tolerance
+/// Gmsh uses (`Geometry.MatchMeshTolerance`, 1e-8 of the bounding-box
+/// diagonal) to replace a discrete surface's map by a plane projection.
+const PLANAR_TOLERANCE: f64 = 1e-8;
+
+/// True when every vertex lies within `PLANAR_TOLERANCE` × diagonal of the
+/// plane through the centroid normal to the summed area vector. Gmsh meshes
+/// such patches by projection and ignores their `(u, v)`, so refining a
+/// coarse planar patch would only inflate the atlas.
+fn is_planar(mesh: &TriMesh) -> bool {
+    let Some(bbox) = mesh.bounding_box() else { return true };
+    let n: crate::geom::Vec3 = (0..mesh.n_faces()).map(|f| mesh.face_area_vector(FaceId::new(f))).sum();
+    let Some(n) = n.try_normalize(0.0) else { return false };
+    let c = mesh.positions.iter().sum::<crate::geom::Vec3>() / mesh.n_vertices() as f64;
+    let tol = PLANAR_TOLERANCE * bbox.diagonal();
+    mesh.positions.iter().all(|p| (p - c).dot(&n).abs() <= tol)
+}
+
+/// Most triangles a coarse patch of `n_faces` triangles may have after
+/// bisection: `refine_max_growth` times more (at least 64), never above
+/// `max_patch_triangles`. The target length alone does not bound the work: a
+/// large flat face with a finely sampled hole has a tiny mean boundary edge.
+fn refined_size_cap(n_faces: usize, opts: &AtlasOptions) -> usize {
+    (n_faces * opts.refine_max_growth).max(64).min(opts.max_patch_triangles.max(n_faces))
 }
 
 /// Mean length of the patch's boundary edges: the target length of refinement.

@@ -26,10 +26,20 @@ pub struct AtlasOptions {
     /// Bisection passes at most (each roughly halves the inner edge lengths).
     /// Default 5.
     pub refine_max_passes: usize,
+    /// A refined patch has at most this many times its triangles (at least
+    /// 64 triangles, at most `max_patch_triangles`); bisection stops, longest
+    /// edges first, when the cap is reached. Default 16.
+    pub refine_max_growth: usize,
     /// A parametric triangle with area below this fraction of the patch's
     /// mean parametric area makes the map unusable, and the patch is split
     /// and redone (§4.2). Default 1e-12.
     pub min_relative_uv_area: f64,
+    /// A one-to-one map whose area distortion (largest over smallest vertex
+    /// area scale `A_uv / A_3d`) exceeds this is split, so that mesh
+    /// generators do not have to resolve scales many orders of magnitude
+    /// apart in `(u, v)` (long tubes, bulges). Default 1e4 (sphere halves:
+    /// 12; CAD faces of the corpus: up to 1e3; a torus half: 1e7).
+    pub max_area_distortion: f64,
     /// How many times a patch may be split because its map failed before
     /// the stage gives up with an error naming it. Default 16.
     pub max_split_depth: usize,
@@ -46,7 +56,9 @@ impl Default for AtlasOptions {
             max_hole_fill_vertices: 500,
             refine_below_interior_fraction: 0.25,
             refine_max_passes: 5,
+            refine_max_growth: 16,
             min_relative_uv_area: 1e-12,
+            max_area_distortion: 1e4,
             max_split_depth: 16,
             solver: MvcSolver::Bicgstab,
         }
@@ -76,6 +88,9 @@ impl AtlasOptions {
         }
         if self.refine_max_passes > 12 {
             return bad("refine_max_passes", "must be at most 12");
+        }
+        if !(self.max_area_distortion >= 1.0) {
+            return bad("max_area_distortion", "must be at least 1");
         }
         if !(0.0..1.0).contains(&self.min_relative_uv_area) {
             return bad("min_relative_uv_area", "must be within [0, 1)");

@@ -34,6 +34,9 @@ pub struct PatchReport {
     pub sigma_ratio_jump_median: f64,
     /// Smallest parametric area over the mean parametric area.
     pub min_relative_uv_area: f64,
+    /// Largest over smallest vertex area scale `A_uv / A_3d` (1 for an
+    /// isometry up to scale; see `verify::area_distortion`).
+    pub area_distortion: f64,
     /// Times this patch's ancestors were split because a map failed.
     pub n_map_splits: usize,
     /// Sparse solver used for the map.
@@ -63,20 +66,36 @@ pub struct SplitCounts {
     pub size: usize,
     /// The map failed verification (flipped or near-zero parametric areas).
     pub map_failed: usize,
+    /// The map's area distortion exceeded `max_area_distortion`.
+    pub distortion: usize,
+}
+
+/// Why one patch was split.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum SplitReason {
+    /// Not a disk with holes.
+    Topology(PatchDefect),
+    /// Above `max_patch_triangles`.
+    Size,
+    /// The map failed verification.
+    MapFailed,
+    /// The map is one-to-one but its area distortion exceeds `max_area_distortion`.
+    Distortion,
 }
 
 impl SplitCounts {
     /// Count one split with its reason.
-    pub fn count(&mut self, defect: Option<PatchDefect>, map_failed: bool) {
-        let slot = match (defect, map_failed) {
-            (_, true) => &mut self.map_failed,
-            (Some(PatchDefect::Closed), _) => &mut self.closed,
-            (Some(PatchDefect::Genus), _) => &mut self.genus,
-            (Some(PatchDefect::NonManifold), _) => &mut self.nonmanifold,
-            (Some(PatchDefect::NotOrientable), _) => &mut self.not_orientable,
-            (Some(PatchDefect::Disconnected), _) => &mut self.disconnected,
-            (Some(PatchDefect::PinchedBoundary), _) => &mut self.pinched_boundary,
-            (None, false) => &mut self.size,
+    pub fn count(&mut self, reason: SplitReason) {
+        let slot = match reason {
+            SplitReason::MapFailed => &mut self.map_failed,
+            SplitReason::Distortion => &mut self.distortion,
+            SplitReason::Size => &mut self.size,
+            SplitReason::Topology(PatchDefect::Closed) => &mut self.closed,
+            SplitReason::Topology(PatchDefect::Genus) => &mut self.genus,
+            SplitReason::Topology(PatchDefect::NonManifold) => &mut self.nonmanifold,
+            SplitReason::Topology(PatchDefect::NotOrientable) => &mut self.not_orientable,
+            SplitReason::Topology(PatchDefect::Disconnected) => &mut self.disconnected,
+            SplitReason::Topology(PatchDefect::PinchedBoundary) => &mut self.pinched_boundary,
         };
         *slot += 1;
     }

@@ -55,6 +55,36 @@ pub fn check_map(patch: &PatchMesh, uv: &[Vec2], min_relative_area: f64) -> MapC
     }
 }
 
+/// Area distortion of the map: the ratio of the largest to the smallest
+/// vertex scale `s_v = Σ A_uv / Σ A_3d` over the triangles around `v`.
+///
+/// MVC maps of long or bulging patches compress exponentially (a tube's
+/// far end, a bunny's ear): every triangle stays positive, but a mesh
+/// generator working in `(u, v)` must then resolve scales that differ by
+/// orders of magnitude, and Gmsh's planar meshers fail or crawl. Averaging
+/// over the one-ring keeps single slivers from dominating the measure.
+pub fn area_distortion(patch: &PatchMesh, uv: &[Vec2]) -> f64 {
+    let n = patch.mesh.n_vertices();
+    let (mut a_uv, mut a_3d) = (vec![0.0f64; n], vec![0.0f64; n]);
+    for (f, t) in patch.mesh.triangles.iter().enumerate() {
+        let auv = 0.5 * orient2d(&uv[t[0].idx()], &uv[t[1].idx()], &uv[t[2].idx()]);
+        let a3 = patch.mesh.face_area(crate::mesh::FaceId::new(f));
+        for v in t {
+            a_uv[v.idx()] += auv;
+            a_3d[v.idx()] += a3;
+        }
+    }
+    let (mut lo, mut hi) = (f64::INFINITY, 0.0f64);
+    for v in 0..n {
+        if a_3d[v] > 0.0 && a_uv[v] > 0.0 {
+            let s = a_uv[v] / a_3d[v];
+            lo = lo.min(s);
+            hi = hi.max(s);
+        }
+    }
+    if lo.is_finite() && lo > 0.0 { hi / lo } else { f64::INFINITY }
+}
+
 /// σ2/σ1 of the affine map from parametric triangle `q` to 3D triangle `p`
 /// (0 when the parametric triangle is degenerate).
 pub fn sigma_ratio(p: [Vec3; 3], q: [Vec2; 3]) -> f64 {

@@ -2,4 +2,5 @@
 //! Crouzeix–Raviart (edge-midpoint) shape functions on triangles, P1 on
 //! tetrahedra, their stiffness and mass matrices.
 
+pub mod crouzeix_raviart;
 pub mod tet_p1;

@@ -1,1 +1,100 @@
 //! The HTTP API (axum): routes, handlers, problem+json errors, OpenAPI.
+//!
+//! [`routes`] is the single route table: [`router`] builds the axum router
+//! from it, and the API test compares it with the `paths` of
+//! `api/openapi.yaml`, so the served routes and the spec cannot drift.
+//!
+//! Every request gets a request id (`x-request-id`, echoed or generated), a
+//! tracing span, and, on error, an `application/problem+json` body
+//! ([`error`]). The upload route has no framework body limit: uploads stream
+//! to disk and [`HttpLimits::max_upload_bytes`] is enforced while streaming.
+//! This is the only module that knows axum.
+
+pub mod error;
+pub mod handlers;
+pub mod upload;
+
+use std::future::Future;
+use std::sync::Arc;
+
+use axum::Router;
+use axum::extract::DefaultBodyLimit;
+use axum::http::Method;
+use axum::routing::{MethodRouter, delete, get, post};
+
+pub use error::ApiError;
+
+use crate::jobs::JobService;
+
+/// Request-level limits of the HTTP layer.
+#[derive(Debug, Clone)]
+pub struct HttpLimits {
+    /// Largest accepted upload in bytes (413 beyond). Default 512 MiB.
+    pub max_upload_bytes: u64,
+    /// `Retry-After` seconds sent with 429. Default 10.
+    pub retry_after_secs: u64,
+}
+
+impl Default for HttpLimits {
+    fn default() -> Self {
+        Self { max_upload_bytes: 512 * 1024 * 1024, retry_after_secs: 10 }
+    }
+}
+
+/// State shared by the handlers.
+#[derive(Clone)]
+pub struct AppState {
+    /// The job service.
+    pub jobs: JobService,
+    /// Request limits.
+    pub limits: Arc<HttpLimits>,
+}
+
+/// One served route: method, path (axum/OpenAPI `{param}` syntax), handler.
+pub struct Route {
+    /// HTTP method.
+    pub method: Method,
+    /// Path template.
+    pub path: &'static str,
+    /// The handler.
+    pub handler: MethodRouter<AppState>,
+}
+
+/// The route table (single source of truth for the router and the spec test).
+pub fn routes() -> Vec<Route> {
+    let r = |method: Method, path: &'static str, handler: MethodRouter<AppState>| Route { method, path, handler };
+    vec![
+        r(Method::POST, "/v1/jobs", post(handlers::submit_job).layer(DefaultBodyLimit::disable())),
+        r(Method::GET, "/v1/jobs", get(handlers::list_jobs)),
+        r(Method::GET, "/v1/jobs/{id}", get(handlers::get_job)),
+        r(Method::DELETE, "/v1/jobs/{id}", delete(handlers::delete_job)),
+        r(Method::POST, "/v1/jobs/{id}/cancel", post(handlers::cancel_job)),
+        r(Method::GET, "/v1/jobs/{id}/artifacts/{name}", get(handlers::get_artifact)),
+        r(Method::GET, "/healthz", get(handlers::healthz)),
+        r(Method::GET, "/metrics", get(handlers::metrics)),
+    ]
+}
+
+/// The application router with its middleware.
+pub fn router(state: AppState) -> Router {
+    let mut app = Router::new();
+    for route in routes() {
+        app = app.route(route.path, route.handler);
+    }
+    app.fallback(handlers::not_found)
+        .layer(tower_http::catch_panic::CatchPanicLayer::new())
+        .layer(axum::middleware::from_fn(error::request_context))
+        .with_state(state)
+}
+
+/// Serves the API on `listener` until `shutdown` resolves.
+///
+/// # Errors
+/// The listener's I/O error.
+pub async fn serve(
+    listener: tokio::net::TcpListener,
+    state: AppState,
+    shutdown: impl Future<Output = ()> + Send + 'static,
+) -> std::io::Result<()> {
+    axum::serve(listener, router(state)).with_graceful_shutdown(shutdown).await
+}

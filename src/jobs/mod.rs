@@ -1,1 +1,42 @@
 //! Durable jobs: model, SQLite store, runner bridging tokio and the rayon pool.
+//!
+//! - [`model`]: ids (random UUID v4), states, records, errors, artifacts.
+//! - [`store`]: SQLite (WAL) records; the queue is the `queued` rows.
+//! - [`runner`]: dispatcher thread, rayon workers, time limit, progress.
+//! - [`service`]: [`JobService`], the async API the HTTP layer calls.
+//! - [`executor`]: what a worker runs ([`Executor`]); the service runs
+//!   [`pipeline_executor::PipelineExecutor`], tests inject fakes.
+//! - [`metrics`]: Prometheus text.
+//!
+//! This is the only module that touches both rayon and tokio: numerical work
+//! runs on the rayon pool, store and file operations on tokio's blocking
+//! pool, and the async side only awaits.
+
+pub mod executor;
+pub mod metrics;
+pub mod model;
+pub mod pipeline_executor;
+pub mod runner;
+pub mod service;
+pub mod store;
+
+pub use executor::{Delayed, ExecError, Executor, JobInput, JobOutcome};
+pub use model::{Artifact, JobError, JobId, JobPage, JobRecord, JobState, NewJob};
+pub use runner::JobsConfig;
+pub use service::{JobService, JobsError};
+pub use store::{Store, StoreError};
+
+/// Installs a panic hook that logs panics through `tracing` (with the
+/// current job span, so the log names the job) instead of printing to
+/// stderr. Jobs also run inside `catch_unwind`, so a panic fails the job and
+/// the process carries on.
+pub fn install_panic_hook() {
+    std::panic::set_hook(Box::new(|info| {
+        let msg = runner::panic_message(info.payload());
+        let location = info.location().map(|l| format!("{}:{}", l.file(), l.line())).unwrap_or_default();
+        tracing::error!(panic = %msg, %location, "panic");
+    }));
+}
+
+#[cfg(test)]
+mod tests;

@@ -15,18 +15,24 @@ pub mod assembly;
 pub mod error;
 pub mod krylov;
 pub mod solvers;
+pub mod supernodal;
 
 pub use assembly::{Pattern, Triplets};
 pub use error::LinalgError;
 pub use krylov::{KrylovReport, bicgstab, bicgstab_block, sparse_matvec};
 pub use solvers::{CholeskySolver, LuSolver};
+pub use supernodal::SupernodalCholesky;
 
 /// A sparse matrix in compressed column form.
 pub type SparseMatrix = faer::sparse::SparseColMat<usize, f64>;
 
-/// Run faer's sparse kernels sequentially; call once at start-up. The job
-/// pool already parallelizes across patches and jobs, and on two cores the
-/// nested parallelism was measured slower (DEPENDENCIES.md).
+/// Run faer's sparse kernels sequentially. The job pool already
+/// parallelizes across patches and jobs, on two cores the nested parallelism
+/// was measured slower (DEPENDENCIES.md), and sequential kernels make every
+/// result independent of the thread count (parallel reductions round
+/// differently). Called by the solvers themselves before their first
+/// factorization; calling it at start-up too is harmless.
 pub fn use_sequential_kernels() {
-    faer::set_global_parallelism(faer::Par::Seq);
+    static ONCE: std::sync::Once = std::sync::Once::new();
+    ONCE.call_once(|| faer::set_global_parallelism(faer::Par::Seq));
 }

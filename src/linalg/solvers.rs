@@ -19,6 +19,7 @@ impl LuSolver {
     /// # Errors
     /// [`LinalgError::Singular`] when a pivot vanishes.
     pub fn new(a: &SparseMatrix) -> Result<Self, LinalgError> {
+        super::use_sequential_kernels();
         let symbolic = SymbolicLu::try_new(a.symbolic())
             .map_err(|e| LinalgError::Internal(format!("{e:?}")))?;
         let lu = Lu::try_new_with_symbolic(symbolic, a.as_ref())
@@ -51,6 +52,7 @@ impl CholeskySolver {
     /// # Errors
     /// [`LinalgError::Singular`] when `a` is not positive definite.
     pub fn new(a: &SparseMatrix) -> Result<Self, LinalgError> {
+        super::use_sequential_kernels();
         let symbolic = SymbolicLlt::try_new(a.symbolic(), Side::Lower)
             .map_err(|e| LinalgError::Internal(format!("{e:?}")))?;
         let llt = Llt::try_new_with_symbolic(symbolic.clone(), a.as_ref(), Side::Lower)

@@ -1,0 +1,219 @@
+//! Bench harness (issue 2 §7): runs the meshatlas pipeline (release build)
+//! on the files given on the command line, one child process per file, and
+//! prints per-step wall time and peak memory; with `--gmsh` it runs Gmsh's
+//! Python API on the same file (`benches/gmsh_reference.py`) and prints the
+//! time ratio per step.
+//!
+//! ```sh
+//! cargo bench --bench pipeline -- [--gmsh] [--stages atlas,crossfield] [--out bench-out] FILE...
+//! cargo bench --bench pipeline -- --generate sphere:1000000:bench-out/sphere_1m.stl [FILE...]
+//! ```
+//!
+//! `--generate KIND:N:PATH` (repeatable) first writes a binary STL of about
+//! N triangles: `sphere` (a cube grid projected on the unit sphere, 12·n²
+//! triangles) or `torus` (radii 1 and 0.3, 6·n² triangles), then benches it
+//! with the other files.
+//!
+//! It is stage-agnostic: rows come from the `timings` of the pipeline
+//! report (`meshatlas run --json`), so a new stage shows up by itself.
+//! Memory is each child's peak RSS (`VmHWM` / `ru_maxrss`).
+
+use std::collections::BTreeMap;
+use std::path::{Path, PathBuf};
+use std::process::Command;
+use std::time::Instant;
+
+use clap::Parser;
+use serde_json::Value;
+
+#[derive(Parser)]
+#[command(about = "meshatlas pipeline bench (optionally against Gmsh)")]
+struct Args {
+    /// Input meshes.
+    files: Vec<PathBuf>,
+    /// Also run Gmsh's reference for each file and print ratios.
+    #[arg(long)]
+    gmsh: bool,
+    /// Stages to run (default: none, i.e. load + repair + write).
+    #[arg(long, default_value = "")]
+    stages: String,
+    /// Directory for the outputs.
+    #[arg(long, default_value = "bench-out")]
+    out: PathBuf,
+    /// Generate an input first: `sphere:N:PATH` or `torus:N:PATH` (about N
+    /// triangles, binary STL). Repeatable; generated files are benched too.
+    #[arg(long)]
+    generate: Vec<String>,
+    /// Passed by `cargo bench`; ignored.
+    #[arg(long, hide = true)]
+    bench: bool,
+}
+
+/// Result of one tool on one file.
+#[derive(Default)]
+struct Run {
+    steps: Vec<(String, f64)>,
+    peak_rss_kb: Option<u64>,
+    n_triangles: Option<u64>,
+    wall: f64,
+    failure: Option<String>,
+}
+
+fn run_meshatlas(file: &Path, stages: &str, out: &Path) -> Run {
+    let mut cmd = Command::new(env!("CARGO_BIN_EXE_meshatlas"));
+    cmd.arg("run").arg(file).arg("--out").arg(out).arg("--json");
+    if !stages.is_empty() {
+        cmd.arg("--stages").arg(stages);
+    }
+    let start = Instant::now();
+    let output = match cmd.output() {
+        Ok(o) => o,
+        Err(e) => return Run { failure: Some(format!("cannot start meshatlas: {e}")), ..Run::default() },
+    };
+    let wall = start.elapsed().as_secs_f64();
+    if !output.status.success() {
+        let err = String::from_utf8_lossy(&output.stderr).trim().to_string();
+        return Run { wall, failure: Some(format!("{}: {err}", output.status)), ..Run::default() };
+    }
+    let report: Value = match serde_json::from_slice(&output.stdout) {
+        Ok(v) => v,
+        Err(e) => return Run { wall, failure: Some(format!("unreadable report: {e}")), ..Run::default() },
+    };
+    let steps = report["timings"]
+        .as_array()
+        .map(|ts| ts.iter().filter_map(|t| Some((t["step"].as_str()?.to_string(), t["seconds"].as_f64()?))).collect())
+        .unwrap_or_default();
+    Run {
+        steps,
+        peak_rss_kb: report["peak_rss_kb"].as_u64(),
+        n_triangles: report["input"]["n_triangles"].as_u64(),
+        wall,
+        failure: None,
+    }
+}
+
+fn run_gmsh(file: &Path, stages: &str) -> Run {
+    let script = concat!(env!("CARGO_MANIFEST_DIR"), "/benches/gmsh_reference.py");
+    let gmsh_stages = if stages.is_empty() { "atlas" } else { stages };
+    let start = Instant::now();
+    let output = match Command::new("python3").arg(script).arg(file).arg(gmsh_stages).output() {
+        Ok(o) => o,
+        Err(e) => return Run { failure: Some(format!("cannot start python3: {e}")), ..Run::default() },
+    };
+    let mut run = Run { wall: start.elapsed().as_secs_f64(), ..Run::default() };
+    for line in String::from_utf8_lossy(&output.stdout).lines() {
+        let Ok(v) = serde_json::from_str::<Value>(line) else { continue };
+        if let (Some(step), Some(s)) = (v["step"].as_str(), v["seconds"].as_f64()) {
+            run.steps.push((step.to_string(), s));
+        }
+        run.peak_rss_kb = run.peak_rss_kb.or(v["peak_rss_kb"].as_u64());
+        run.n_triangles = run.n_triangles.or(v["n_triangles"].as_u64());
+    }
+    if !output.status.success() {
+        let err = String::from_utf8_lossy(&output.stderr);
+        let last = err.lines().rev().find(|l| !l.trim().is_empty()).unwrap_or("").trim().to_string();
+        run.failure = Some(format!("gmsh {} {last}", output.status));
+    }
+    run
+}
+
+/// Writes the mesh described by `spec` (`KIND:N:PATH`) and returns its path.
+fn generate(spec: &str) -> Result<PathBuf, String> {
+    let mut parts = spec.splitn(3, ':');
+    let (kind, n, path) = match (parts.next(), parts.next(), parts.next()) {
+        (Some(k), Some(n), Some(p)) => (k, n, PathBuf::from(p)),
+        _ => return Err(format!("--generate {spec}: expected KIND:N:PATH")),
+    };
+    let n: f64 = n.parse().map_err(|_| format!("--generate {spec}: N must be a number"))?;
+    let mesh = match kind {
+        "sphere" => {
+            let k = ((n / 12.0).sqrt().round() as usize).max(1);
+            let mut m = meshatlas::mesh::fixtures::cube(k);
+            for p in &mut m.positions {
+                *p = p.normalize();
+            }
+            m
+        }
+        "torus" => {
+            let k = ((n / 6.0).sqrt().round() as usize).max(3);
+            meshatlas::mesh::fixtures::torus(1.0, 0.3, 3 * k, k)
+        }
+        other => return Err(format!("--generate {spec}: unknown kind `{other}` (sphere or torus)")),
+    };
+    if let Some(dir) = path.parent() {
+        std::fs::create_dir_all(dir).map_err(|e| format!("{}: {e}", dir.display()))?;
+    }
+    let file = std::fs::File::create(&path).map_err(|e| format!("{}: {e}", path.display()))?;
+    meshatlas::io::stl_write::write_stl_binary(file, &mesh).map_err(|e| format!("{}: {e}", path.display()))?;
+    eprintln!("generated {} ({} triangles)", path.display(), mesh.n_faces());
+    Ok(path)
+}
+
+fn mib(kb: Option<u64>) -> String {
+    kb.map(|k| format!("{:.1}", k as f64 / 1024.0)).unwrap_or_else(|| "-".into())
+}
+
+fn main() {
+    let mut args = Args::parse();
+    for spec in &args.generate {
+        match generate(spec) {
+            Ok(p) => args.files.push(p),
+            Err(e) => {
+                eprintln!("{e}");
+                std::process::exit(2);
+            }
+        }
+    }
+    if args.files.is_empty() {
+        eprintln!("usage: cargo bench --bench pipeline -- [--gmsh] [--stages LIST] FILE...");
+        std::process::exit(2);
+    }
+    println!("{:<28} {:>10} {:<12} {:>12} {:>12} {:>8}", "file", "triangles", "step", "meshatlas s", "gmsh s", "ratio");
+    for file in &args.files {
+        let name = file.file_name().map(|n| n.to_string_lossy().into_owned()).unwrap_or_default();
+        let out = args.out.join(file.file_stem().unwrap_or_default());
+        let ours = run_meshatlas(file, &args.stages, &out);
+        let gmsh = if args.gmsh { Some(run_gmsh(file, &args.stages)) } else { None };
+        let theirs: BTreeMap<String, f64> =
+            gmsh.as_ref().map(|g| g.steps.iter().cloned().collect()).unwrap_or_default();
+        let tris = ours.n_triangles.or(gmsh.as_ref().and_then(|g| g.n_triangles));
+        let tris = tris.map(|t| t.to_string()).unwrap_or_else(|| "-".into());
+        let mut names: Vec<String> = ours.steps.iter().map(|(s, _)| s.clone()).collect();
+        for (s, _) in gmsh.iter().flat_map(|g| g.steps.iter()) {
+            if !names.contains(s) {
+                names.push(s.clone());
+            }
+        }
+        let ours_map: BTreeMap<String, f64> = ours.steps.iter().cloned().collect();
+        for step in &names {
+            let a = ours_map.get(step).copied();
+            let b = theirs.get(step).copied();
+            let fmt = |v: Option<f64>| v.map(|v| format!("{v:.4}")).unwrap_or_else(|| "-".into());
+            let ratio = match (a, b) {
+                (Some(a), Some(b)) if b > 0.0 => format!("{:.2}", a / b),
+                _ => "-".into(),
+            };
+            println!("{name:<28} {tris:>10} {step:<12} {:>12} {:>12} {ratio:>8}", fmt(a), fmt(b));
+        }
+        println!(
+            "{name:<28} {tris:>10} {:<12} {:>12.4} {:>12} {:>8}",
+            "wall",
+            ours.wall,
+            gmsh.as_ref().map(|g| format!("{:.4}", g.wall)).unwrap_or_else(|| "-".into()),
+            ""
+        );
+        println!(
+            "{name:<28} {tris:>10} {:<12} {:>12} {:>12} {:>8}",
+            "peak MiB",
+            mib(ours.peak_rss_kb),
+            gmsh.as_ref().map(|g| mib(g.peak_rss_kb)).unwrap_or_else(|| "-".into()),
+            ""
+        );
+        if let Some(f) = &ours.failure {
+            println!("{name:<28} meshatlas FAILED: {f}");
+        }
+        if let Some(f) = gmsh.as_ref().and_then(|g| g.failure.as_ref()) {
+            println!("{name:<28} gmsh FAILED: {f}");
+        }
+    }
+}

@@ -1,0 +1,287 @@
+//! Safeguarded Newton method on the discrete Ginzburg–Landau energy for one
+//! coherence length ε (one stage of the continuation), thesis (3.16)–(3.21).
+//!
+//! Each step solves `(H + μ M/ε²) d = −g` with a sparse (supernodal) Cholesky
+//! factorization whose symbolic analysis is done once and reused by every
+//! step and stage ([`SupernodalCholesky`]), then backtracks on the energy (Armijo,
+//! `E(f + α d) ≤ E(f) + 10⁻⁴ α gᵀd`, α halved).
+//!
+//! Why this safeguard. The Hessian is indefinite wherever `|f| < 1` (the
+//! vortex cores, and everywhere at the start of a stage when ε shrinks), and
+//! near a minimizer it has very flat directions (moving a vortex: on the
+//! disk, rotating the four vortices together costs nothing in the continuum).
+//! We use a Levenberg–Marquardt safeguard on the exact Hessian: factor
+//! `H + μ M/ε²` (M the CR mass), starting from the last μ (or 10⁻⁸) and
+//! raising it ×100 until the Cholesky factorization succeeds (the negative curvature of the
+//! penalty is bounded by `M/ε²`, so μ ≈ 1 always succeeds); lower it ×100
+//! after a full step, raise it ×10 after a strongly cut one. Starting low
+//! matters: vortex motion is a nearly flat (sometimes slightly negative)
+//! direction, and a large μ would make vortices creep. Near a minimizer μ
+//! returns to 0: pure Newton, quadratic convergence. Clamping the indefinite
+//! term instead (the "modified" Hessian of [`super::energy`], kept only as a
+//! last resort) stalls in flat directions: its extra curvature in the cores
+//! makes vortex motion creep. An eigenvalue-based modification would need an
+//! eigen-solve per step, a trust region several solves per rejected radius.
+//! The tiny shift `10⁻⁸ × mean diagonal` keeps the factorization defined at
+//! a minimizer of a closed surface without aligned edges, where `i f` spans
+//! the kernel (global rotation invariance of the GL energy): the gradient is
+//! orthogonal to that kernel, so no pinned edge is needed.
+//!
+//! Residual. `g_p ≈ m_p (−Δf + (|f|²−1) f/ε²)_p` (CR mass `m_p`), so
+//! `ε² (Σ_p |g_p|²/m_p / area)^{1/2}` is a dimensionless L² norm of the
+//! strong residual of (3.16); it is what the tolerances measure.
+
+use super::energy::{EnergyParams, HessianKind, total_energy};
+use super::frames::{C64, Discretization};
+use super::system::NewtonSystem;
+use super::{CrossfieldError, NewtonRecord};
+use crate::linalg::SupernodalCholesky;
+use crate::mesh::Topology;
+use crate::progress::Progress;
+
+/// Relative diagonal shift `μ`.
+const SHIFT: f64 = 1e-8;
+/// Armijo constant.
+const ARMIJO: f64 = 1e-4;
+/// Iterations over which an intermediate stage must decrease the energy...
+const STALL_WINDOW: usize = 5;
+/// ... by at least this relative amount, or it stops.
+const STALL_DECREASE: f64 = 1e-7;
+/// Maximum step halvings.
+const MAX_HALVINGS: usize = 40;
+/// First non-zero Levenberg–Marquardt parameter (units of 1/ε²).
+const MU_FIRST: f64 = 1e-8;
+/// Factor by which μ is raised after a failed factorization, and lowered after a full step.
+const MU_STEP: f64 = 100.0;
+/// Factorization attempts with a raised parameter before the modified Hessian.
+const MAX_SHIFT_RAISES: usize = 6;
+
+/// The reusable part of the Newton solver: system structure and factorization.
+pub struct NewtonSolver<'a> {
+    /// Mesh topology.
+    pub topo: &'a Topology,
+    /// Geometric discretization.
+    pub disc: &'a Discretization,
+    /// Free unknowns and Hessian structure.
+    pub sys: &'a NewtonSystem,
+    chol: Option<SupernodalCholesky>,
+    /// Number of steps that fell back to the modified Hessian.
+    pub n_modified_steps: usize,
+    /// Numeric factorizations attempted (failed ones included).
+    pub n_factorizations: usize,
+}
+
+/// Outcome of one stage.
+#[derive(Debug, Clone, Copy)]
+pub struct StageOutcome {
+    /// Newton steps taken.
+    pub iterations: usize,
+    /// Scaled residual at the end.
+    pub residual: f64,
+    /// Energy at the end.
+    pub energy: f64,
+    /// Whether the tolerance was reached.
+    pub converged: bool,
+}
+
+impl<'a> NewtonSolver<'a> {
+    /// A solver for `sys` (no factorization yet).
+    pub fn new(topo: &'a Topology, disc: &'a Discretization, sys: &'a NewtonSystem) -> Self {
+        Self {
+            topo,
+            disc,
+            sys,
+            chol: None,
+            n_modified_steps: 0,
+            n_factorizations: 0,
+        }
+    }
+
+    /// Factor `values + μ·mass` (+ a relative round-off shift), reusing the
+    /// symbolic analysis. `mass` holds one entry per real unknown.
+    ///
+    /// # Errors
+    /// [`CrossfieldError::Linalg`] when the matrix is not positive definite.
+    pub fn factor(
+        &mut self,
+        mut values: Vec<f64>,
+        mass: &[f64],
+        mu: f64,
+    ) -> Result<(), CrossfieldError> {
+        self.n_factorizations += 1;
+        let diag = self.sys.diagonal(&values);
+        let mean = diag.iter().map(|d| d.abs()).sum::<f64>() / diag.len().max(1) as f64;
+        let ones = vec![1.0; diag.len()];
+        self.sys
+            .add_to_diagonal(&mut values, &ones, SHIFT * mean.max(f64::MIN_POSITIVE));
+        if mu > 0.0 {
+            self.sys.add_to_diagonal(&mut values, mass, mu);
+        }
+        let a = self.sys.matrix(values)?;
+        if self.chol.is_none() {
+            self.chol = Some(SupernodalCholesky::analyze(&a)?);
+        }
+        if let Some(c) = &mut self.chol {
+            c.factor(&a)?;
+        }
+        Ok(())
+    }
+
+    /// CR mass per real unknown.
+    pub fn dof_mass(&self) -> Vec<f64> {
+        self.sys
+            .free_edges
+            .iter()
+            .flat_map(|&e| [self.disc.mass_per_edge[e as usize]; 2])
+            .collect()
+    }
+
+    /// Solve with the last factorization, in place.
+    ///
+    /// # Errors
+    /// [`CrossfieldError::Linalg`] when nothing was factored or sizes differ.
+    pub fn solve(&mut self, rhs: &mut [f64]) -> Result<(), CrossfieldError> {
+        let c = self.chol.as_mut().ok_or(CrossfieldError::Linalg(
+            crate::linalg::LinalgError::Internal("solve before factorization".into()),
+        ))?;
+        c.solve_in_place(rhs)?;
+        Ok(())
+    }
+
+    /// Scaled residual of a gradient (see the module doc).
+    pub fn residual(&self, grad: &[f64], eps: f64) -> f64 {
+        let mut s = 0.0;
+        for (i, &e) in self.sys.free_edges.iter().enumerate() {
+            let m = self.disc.mass_per_edge[e as usize];
+            if m > 0.0 {
+                s += (grad[2 * i] * grad[2 * i] + grad[2 * i + 1] * grad[2 * i + 1]) / m;
+            }
+        }
+        eps * eps * (s / self.disc.area.max(f64::MIN_POSITIVE)).sqrt()
+    }
+
+    /// Minimize the energy for one ε from `f` (updated in place), starting
+    /// with the Levenberg–Marquardt parameter `mu_start` (1 right after ε
+    /// decreased, where the shrinking cores make the Hessian indefinite).
+    ///
+    /// # Errors
+    /// [`CrossfieldError::Cancelled`] when `progress` is cancelled, or a
+    /// linear-solver failure of the modified (positive semi-definite) system.
+    #[allow(clippy::too_many_arguments)]
+    pub fn minimize(
+        &mut self,
+        f: &mut [C64],
+        params: &EnergyParams,
+        eps: f64,
+        tol: f64,
+        max_iter: usize,
+        stop_on_stall: bool,
+        mu_start: f64,
+        progress: &Progress,
+        history: &mut Vec<NewtonRecord>,
+    ) -> Result<StageOutcome, CrossfieldError> {
+        let mass = self.dof_mass();
+        let inv_eps2 = 1.0 / (eps * eps);
+        // Levenberg–Marquardt parameter, in units of 1/ε² (0 = pure Newton).
+        let mut mu = mu_start;
+        let mut trial = f.to_vec();
+        let mut energies: Vec<f64> = Vec::new();
+        let mut out = StageOutcome {
+            iterations: 0,
+            residual: f64::INFINITY,
+            energy: f64::INFINITY,
+            converged: false,
+        };
+        for it in 0..=max_iter {
+            progress.check()?;
+            let asm = self
+                .sys
+                .assemble(self.topo, self.disc, f, params, HessianKind::Exact);
+            let res = self.residual(&asm.grad, eps);
+            out.residual = res;
+            out.energy = asm.energy;
+            let mut record = NewtonRecord {
+                epsilon: eps,
+                iteration: it,
+                residual: res,
+                energy: asm.energy,
+                step: 0.0,
+                shift: 0.0,
+                hessian: "exact",
+            };
+            // Intermediate stages only need the vortices roughly in place:
+            // stop when the energy stalls (vortices creeping along a flat valley).
+            let stalled = stop_on_stall
+                && it >= STALL_WINDOW
+                && energies[it - STALL_WINDOW] - asm.energy <= STALL_DECREASE * asm.energy.abs();
+            energies.push(asm.energy);
+            if res <= tol || !res.is_finite() || it == max_iter || stalled {
+                out.converged = res <= tol;
+                history.push(record);
+                break;
+            }
+            // Exact Hessian + μ M, μ raised ×10 until the factorization succeeds.
+            let mut factored = false;
+            for _ in 0..MAX_SHIFT_RAISES {
+                if self
+                    .factor(asm.hess_values.clone(), &mass, mu * inv_eps2)
+                    .is_ok()
+                {
+                    factored = true;
+                    break;
+                }
+                mu = if mu == 0.0 { MU_FIRST } else { mu * MU_STEP };
+            }
+            if !factored {
+                let m = self
+                    .sys
+                    .assemble(self.topo, self.disc, f, params, HessianKind::Modified);
+                self.factor(m.hess_values, &mass, 0.0)?;
+                record.hessian = "modified";
+            }
+            if mu > 0.0 || !factored {
+                self.n_modified_steps += 1;
+            }
+            record.shift = mu;
+            let mut d: Vec<f64> = asm.grad.iter().map(|g| -g).collect();
+            self.solve(&mut d)?;
+            let slope: f64 = d.iter().zip(&asm.grad).map(|(a, b)| a * b).sum();
+            if !(slope < 0.0) {
+                // Not a descent direction (round-off at convergence): stop the stage.
+                history.push(record);
+                break;
+            }
+            let mut alpha = 1.0;
+            let mut accepted = false;
+            for _ in 0..MAX_HALVINGS {
+                for (i, &e) in self.sys.free_edges.iter().enumerate() {
+                    trial[e as usize] =
+                        f[e as usize] + C64::new(alpha * d[2 * i], alpha * d[2 * i + 1]);
+                }
+                let e_trial = total_energy(self.disc, self.topo, &trial, params);
+                if e_trial <= asm.energy + ARMIJO * alpha * slope {
+                    accepted = true;
+                    break;
+                }
+                alpha *= 0.5;
+            }
+            record.step = if accepted { alpha } else { 0.0 };
+            history.push(record);
+            if !accepted {
+                // No decrease measurable in floating point: the stage is as converged as it gets.
+                break;
+            }
+            for &e in &self.sys.free_edges {
+                f[e as usize] = trial[e as usize];
+            }
+            out.iterations += 1;
+            // Trust the quadratic model more after a full step, less after a cut one.
+            if alpha == 1.0 {
+                mu = if mu <= MU_FIRST { 0.0 } else { mu / MU_STEP };
+            } else if alpha < 0.25 {
+                mu = if mu == 0.0 { MU_FIRST } else { mu * 10.0 };
+            }
+        }
+        Ok(out)
+    }
+}

@@ -1,0 +1,355 @@
+//! [`ApiError`]: the one place where errors become HTTP status codes, and
+//! the `application/problem+json` bodies (RFC 9457) every error carries.
+//!
+//! Every problem has a stable `type` (`urn:meshatlas:problem:<kind>`), a
+//! `title` fixed per kind, a `status`, a `detail` for this occurrence and the
+//! `request_id` (also sent as the `x-request-id` header). Server errors (5xx)
+//! get a generic detail; the real cause goes to the log with the request id.
+//!
+//! The request-context middleware ([`request_context`]) assigns the request
+//! id, opens the request's tracing span, and turns any error response that
+//! is not yet problem+json (axum's 404/405, extractor rejections, a caught
+//! panic) into one, so no error leaves the server without a problem body.
+
+use axum::body::Body;
+use axum::extract::Request;
+use axum::http::{HeaderMap, HeaderValue, StatusCode, header};
+use axum::middleware::Next;
+use axum::response::{IntoResponse, Response};
+use serde_json::{Map, Value, json};
+use tracing::Instrument;
+
+use crate::jobs::{JobError, JobsError};
+use crate::pipeline::ParamsError;
+
+/// Prefix of every problem `type`.
+pub const PROBLEM_TYPE_PREFIX: &str = "urn:meshatlas:problem:";
+/// Media type of error bodies.
+pub const PROBLEM_JSON: &str = "application/problem+json";
+/// Header carrying the request id.
+pub const REQUEST_ID_HEADER: &str = "x-request-id";
+
+tokio::task_local! {
+    static REQUEST_ID: String;
+}
+
+/// The id of the request being handled (`-` outside a request).
+pub fn current_request_id() -> String {
+    REQUEST_ID.try_with(Clone::clone).unwrap_or_else(|_| "-".to_string())
+}
+
+/// An error answered to a client (boxed: handlers return it in `Result`s).
+#[derive(Debug)]
+pub struct ApiError(Box<Problem>);
+
+/// The fields of an [`ApiError`].
+#[derive(Debug)]
+struct Problem {
+    status: StatusCode,
+    kind: &'static str,
+    title: &'static str,
+    detail: String,
+    extra: Map<String, Value>,
+    retry_after: Option<u64>,
+    /// Cause logged (not shown) for server errors.
+    cause: Option<String>,
+}
+
+/// Every stable failure kind with its status and title. Kinds from the mesh
+/// readers (`parse-error`, `truncated`, …) and the job runner appear in job
+/// resources; the others are request errors. Unknown kinds are
+/// `internal-error` (500).
+const KINDS: &[(&str, StatusCode, &str)] = &[
+    ("bad-request", StatusCode::BAD_REQUEST, "Bad request"),
+    ("invalid-query", StatusCode::BAD_REQUEST, "Invalid query parameter"),
+    ("invalid-json", StatusCode::BAD_REQUEST, "Parameters are not valid JSON"),
+    ("invalid-multipart", StatusCode::BAD_REQUEST, "Malformed multipart body"),
+    ("missing-file", StatusCode::BAD_REQUEST, "No file in the upload"),
+    ("upload-interrupted", StatusCode::BAD_REQUEST, "The upload was interrupted"),
+    ("empty-file", StatusCode::BAD_REQUEST, "The uploaded file is empty"),
+    ("not-found", StatusCode::NOT_FOUND, "No such resource"),
+    ("job-not-found", StatusCode::NOT_FOUND, "No such job"),
+    ("artifact-not-found", StatusCode::NOT_FOUND, "No such artifact"),
+    ("method-not-allowed", StatusCode::METHOD_NOT_ALLOWED, "Method not allowed"),
+    ("upload-too-large", StatusCode::PAYLOAD_TOO_LARGE, "Upload too large"),
+    ("range-not-satisfiable", StatusCode::RANGE_NOT_SATISFIABLE, "Range not satisfiable"),
+    ("unsupported-media-type", StatusCode::UNSUPPORTED_MEDIA_TYPE, "Unsupported media type"),
+    ("unknown-format", StatusCode::UNSUPPORTED_MEDIA_TYPE, "Unknown mesh format"),
+    ("invalid-params", StatusCode::UNPROCESSABLE_ENTITY, "Invalid pipeline parameters"),
+    ("queue-full", StatusCode::TOO_MANY_REQUESTS, "Job queue full"),
+    ("service-unavailable", StatusCode::SERVICE_UNAVAILABLE, "Service unavailable"),
+    // Job failures caused by the input (reader errors and limits).
+    ("truncated", StatusCode::UNPROCESSABLE_ENTITY, "Truncated mesh file"),
+    ("parse-error", StatusCode::UNPROCESSABLE_ENTITY, "Mesh file does not parse"),
+    ("non-finite-coordinate", StatusCode::UNPROCESSABLE_ENTITY, "Non-finite coordinate"),
+    ("coordinate-out-of-range", StatusCode::UNPROCESSABLE_ENTITY, "Coordinate out of range"),
+    ("index-out-of-range", StatusCode::UNPROCESSABLE_ENTITY, "Face index out of range"),
+    ("too-many-vertices", StatusCode::UNPROCESSABLE_ENTITY, "Too many vertices"),
+    ("invalid-mesh", StatusCode::UNPROCESSABLE_ENTITY, "Mesh violates an invariant after repair"),
+    ("invalid-options", StatusCode::UNPROCESSABLE_ENTITY, "Invalid load options"),
+    ("too-many-triangles", StatusCode::UNPROCESSABLE_ENTITY, "Too many triangles"),
+    ("no-triangles", StatusCode::UNPROCESSABLE_ENTITY, "No triangles in the mesh"),
+    ("unsupported", StatusCode::UNPROCESSABLE_ENTITY, "Unsupported mesh content"),
+    ("stage-failed", StatusCode::UNPROCESSABLE_ENTITY, "A pipeline stage failed on this input"),
+    ("no-valid-map", StatusCode::UNPROCESSABLE_ENTITY, "A patch has no valid one-to-one parameterization"),
+    ("non-orientable-surface", StatusCode::UNPROCESSABLE_ENTITY, "The surface cannot be oriented consistently"),
+    ("time-limit-exceeded", StatusCode::UNPROCESSABLE_ENTITY, "Job time limit exceeded"),
+    ("interrupted", StatusCode::SERVICE_UNAVAILABLE, "Job interrupted repeatedly"),
+    ("internal-error", StatusCode::INTERNAL_SERVER_ERROR, "Internal server error"),
+];
+
+/// The table entry of `kind` (`internal-error` when unknown), so a kind
+/// read from the database becomes `'static`.
+fn kind_entry(kind: &str) -> (&'static str, StatusCode, &'static str) {
+    let last = KINDS[KINDS.len() - 1];
+    KINDS.iter().copied().find(|(k, _, _)| *k == kind).unwrap_or(last)
+}
+
+impl ApiError {
+    /// An error of a known `kind` with a client-facing `detail`.
+    pub fn new(kind: &str, detail: impl Into<String>) -> Self {
+        let (kind, status, title) = kind_entry(kind);
+        Self(Box::new(Problem {
+            status,
+            kind,
+            title,
+            detail: detail.into(),
+            extra: Map::new(),
+            retry_after: None,
+            cause: None,
+        }))
+    }
+
+    /// A server error; `cause` is logged with the request id, never shown.
+    pub fn internal(cause: impl std::fmt::Display) -> Self {
+        let mut e = Self::new("internal-error", "");
+        e.0.cause = Some(cause.to_string());
+        e
+    }
+
+    /// Adds an extension member to the problem body.
+    pub fn with(mut self, key: &str, value: impl Into<Value>) -> Self {
+        self.0.extra.insert(key.to_string(), value.into());
+        self
+    }
+
+    /// Asks the client to retry after `secs` seconds (`Retry-After`).
+    pub fn retry_after(mut self, secs: u64) -> Self {
+        self.0.retry_after = Some(secs);
+        self
+    }
+
+    /// The HTTP status of this error.
+    pub fn status(&self) -> StatusCode {
+        self.0.status
+    }
+
+    /// The stable kind (suffix of `type`).
+    pub fn kind(&self) -> &'static str {
+        self.0.kind
+    }
+
+    /// Invalid pipeline parameters (422), or not JSON at all (400).
+    pub fn params(e: ParamsError) -> Self {
+        let kind = if e.syntax { "invalid-json" } else { "invalid-params" };
+        let detail = match &e.field {
+            Some(f) => format!("parameter `{f}`: {}", e.message),
+            None => e.message.clone(),
+        };
+        let mut err = Self::new(kind, detail);
+        if let Some(f) = e.field {
+            err = err.with("field", f);
+        }
+        err
+    }
+
+    /// The upload exceeded `limit` bytes (413).
+    pub fn upload_too_large(limit: u64) -> Self {
+        Self::new("upload-too-large", format!("the upload exceeds this server's limit of {limit} bytes"))
+            .with("max_bytes", limit)
+    }
+
+    /// The problem+json object of a failed job (shown inside the job
+    /// resource; its `status` is what a synchronous request would have got).
+    pub fn job_problem(e: &JobError) -> Value {
+        let (kind, status, title) = kind_entry(&e.kind);
+        let detail = if status.is_server_error() && kind == "internal-error" {
+            "the job stopped because of an internal error; it has been logged".to_string()
+        } else {
+            e.detail.clone()
+        };
+        json!({
+            "type": format!("{PROBLEM_TYPE_PREFIX}{kind}"),
+            "title": title,
+            "status": status.as_u16(),
+            "detail": detail,
+        })
+    }
+
+    /// The problem body (with the current request id).
+    fn body(&self, request_id: &str) -> Value {
+        let detail = if self.0.status.is_server_error() {
+            format!("the server could not complete the request; quote request id {request_id} when reporting it")
+        } else {
+            self.0.detail.clone()
+        };
+        let mut obj = Map::new();
+        obj.insert("type".into(), Value::String(format!("{PROBLEM_TYPE_PREFIX}{}", self.0.kind)));
+        obj.insert("title".into(), Value::String(self.0.title.into()));
+        obj.insert("status".into(), Value::from(self.0.status.as_u16()));
+        obj.insert("detail".into(), Value::String(detail));
+        obj.insert("request_id".into(), Value::String(request_id.into()));
+        if !self.0.status.is_server_error() {
+            for (k, v) in &self.0.extra {
+                obj.insert(k.clone(), v.clone());
+            }
+        }
+        Value::Object(obj)
+    }
+
+    fn into_response_with_id(self, request_id: &str) -> Response {
+        if self.0.status.is_server_error() {
+            tracing::error!(
+                request_id,
+                kind = self.0.kind,
+                cause = self.0.cause.as_deref().unwrap_or(&self.0.detail),
+                "request failed"
+            );
+        } else {
+            tracing::info!(request_id, kind = self.0.kind, status = self.0.status.as_u16(), detail = %self.0.detail, "request rejected");
+        }
+        let body = serde_json::to_vec(&self.body(request_id)).unwrap_or_default();
+        let mut resp = Response::new(Body::from(body));
+        *resp.status_mut() = self.0.status;
+        resp.headers_mut().insert(header::CONTENT_TYPE, HeaderValue::from_static(PROBLEM_JSON));
+        if let Some(secs) = self.0.retry_after {
+            resp.headers_mut().insert(header::RETRY_AFTER, HeaderValue::from(secs));
+        }
+        resp
+    }
+}
+
+impl IntoResponse for ApiError {
+    fn into_response(self) -> Response {
+        let id = current_request_id();
+        self.into_response_with_id(&id)
+    }
+}
+
+impl From<JobsError> for ApiError {
+    fn from(e: JobsError) -> Self {
+        match e {
+            JobsError::NotFound(id) => Self::new("job-not-found", format!("job {id} does not exist")),
+            JobsError::ArtifactNotFound { id, name } => {
+                Self::new("artifact-not-found", format!("job {id} has no artifact named `{name}`"))
+            }
+            JobsError::QueueFull { max_queued } => Self::new(
+                "queue-full",
+                format!("the job queue is full ({max_queued} jobs waiting); retry after the Retry-After delay"),
+            ),
+            other => Self::internal(other),
+        }
+    }
+}
+
+/// A request id from the client's header, if it is short and plain.
+fn client_request_id(headers: &HeaderMap) -> Option<String> {
+    let v = headers.get(REQUEST_ID_HEADER)?.to_str().ok()?;
+    let ok = !v.is_empty() && v.len() <= 128 && v.bytes().all(|b| b.is_ascii_alphanumeric() || b"-_.:".contains(&b));
+    ok.then(|| v.to_string())
+}
+
+/// Kind for an error status produced outside our handlers.
+fn kind_for_status(status: StatusCode) -> &'static str {
+    match status {
+        StatusCode::NOT_FOUND => "not-found",
+        StatusCode::METHOD_NOT_ALLOWED => "method-not-allowed",
+        StatusCode::PAYLOAD_TOO_LARGE => "upload-too-large",
+        StatusCode::RANGE_NOT_SATISFIABLE => "range-not-satisfiable",
+        StatusCode::UNSUPPORTED_MEDIA_TYPE => "unsupported-media-type",
+        StatusCode::TOO_MANY_REQUESTS => "queue-full",
+        StatusCode::SERVICE_UNAVAILABLE => "service-unavailable",
+        s if s.is_client_error() => "bad-request",
+        _ => "internal-error",
+    }
+}
+
+/// Middleware: request id, tracing span, access log, problem+json for every
+/// error response.
+pub async fn request_context(req: Request, next: Next) -> Response {
+    let id = client_request_id(req.headers()).unwrap_or_else(|| uuid::Uuid::new_v4().simple().to_string());
+    let span = tracing::info_span!("request", request_id = %id, method = %req.method(), path = %req.uri().path());
+    let start = std::time::Instant::now();
+    let resp = REQUEST_ID.scope(id.clone(), next.run(req).instrument(span.clone())).await;
+    let mut resp = if resp.status().is_client_error() || resp.status().is_server_error() {
+        let is_problem = resp
+            .headers()
+            .get(header::CONTENT_TYPE)
+            .and_then(|v| v.to_str().ok())
+            .is_some_and(|v| v.starts_with(PROBLEM_JSON));
+        if is_problem { resp } else { problemize(resp, &id).instrument(span.clone()).await }
+    } else {
+        resp
+    };
+    if let Ok(v) = HeaderValue::from_str(&id) {
+        resp.headers_mut().insert(REQUEST_ID_HEADER, v);
+    }
+    span.in_scope(|| {
+        tracing::info!(status = resp.status().as_u16(), ms = start.elapsed().as_secs_f64() * 1e3, "request done");
+    });
+    resp
+}
+
+/// Rewrites a framework error response as problem+json, keeping its headers
+/// (e.g. `Allow` of a 405) and its text as the detail.
+async fn problemize(resp: Response, id: &str) -> Response {
+    let (parts, body) = resp.into_parts();
+    let text = match axum::body::to_bytes(body, 16 * 1024).await {
+        Ok(b) => String::from_utf8_lossy(&b).trim().to_string(),
+        Err(_) => String::new(),
+    };
+    let kind = kind_for_status(parts.status);
+    let detail = match (kind, text.is_empty()) {
+        ("not-found", true) => "no route matches this path; see api/openapi.yaml".to_string(),
+        ("method-not-allowed", true) => "this path does not support this method (see the Allow header)".to_string(),
+        (_, true) => parts.status.canonical_reason().unwrap_or("error").to_string(),
+        (_, false) => text,
+    };
+    let mut err = if parts.status.is_server_error() { ApiError::internal(detail) } else { ApiError::new(kind, detail) };
+    err.0.status = parts.status;
+    let mut out = err.into_response_with_id(id);
+    for (name, value) in &parts.headers {
+        if name != header::CONTENT_TYPE && name != header::CONTENT_LENGTH {
+            out.headers_mut().insert(name.clone(), value.clone());
+        }
+    }
+    out
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn every_kind_has_a_status_and_unknown_kinds_are_internal() {
+        assert_eq!(ApiError::new("queue-full", "x").status(), StatusCode::TOO_MANY_REQUESTS);
+        assert_eq!(ApiError::new("too-many-triangles", "x").status(), StatusCode::UNPROCESSABLE_ENTITY);
+        assert_eq!(ApiError::new("no-such-kind", "x").kind(), "internal-error");
+        let p = ApiError::job_problem(&JobError::new("too-many-triangles", "7 > 5"));
+        assert_eq!(p["status"], 422);
+        assert_eq!(p["type"], "urn:meshatlas:problem:too-many-triangles");
+        assert_eq!(p["detail"], "7 > 5");
+        let p = ApiError::job_problem(&JobError::new("internal-error", "secret panic text"));
+        assert_eq!(p["status"], 500);
+        assert!(!p["detail"].as_str().unwrap().contains("secret"));
+    }
+
+    #[test]
+    fn server_error_bodies_are_generic() {
+        let e = ApiError::internal("disk /var/lib/x is full");
+        let b = e.body("abc");
+        assert_eq!(b["status"], 500);
+        assert!(!b["detail"].as_str().unwrap().contains("disk"));
+        assert_eq!(b["request_id"], "abc");
+    }
+}

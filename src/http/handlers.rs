@@ -1,0 +1,284 @@
+//! Route handlers: thin adapters from HTTP to [`crate::jobs::JobService`].
+
+use axum::Json;
+use axum::body::Body;
+use axum::extract::rejection::QueryRejection;
+use axum::extract::{FromRequest, Path, Query, Request, State};
+use axum::http::{HeaderValue, StatusCode, header};
+use axum::response::{IntoResponse, Response};
+use serde::Deserialize;
+use serde_json::{Value, json};
+use tower::ServiceExt;
+
+use super::AppState;
+use super::error::ApiError;
+use super::upload::{self, SubmitQuery};
+use crate::jobs::{JobId, JobRecord, NewJob, model::rfc3339};
+use crate::pipeline::parse_params;
+
+/// URL path of a job.
+pub fn job_url(id: JobId) -> String {
+    format!("/v1/jobs/{id}")
+}
+
+/// The job resource as JSON.
+pub fn job_json(rec: &JobRecord) -> Value {
+    let artifacts: Vec<Value> = rec
+        .artifacts
+        .iter()
+        .map(|a| {
+            json!({
+                "name": a.name,
+                "bytes": a.bytes,
+                "media_type": a.media_type,
+                "url": format!("{}/artifacts/{}", job_url(rec.id), a.name),
+            })
+        })
+        .collect();
+    json!({
+        "id": rec.id,
+        "url": job_url(rec.id),
+        "state": rec.state,
+        "created_at": rfc3339(rec.created_ms),
+        "started_at": rec.started_ms.map(rfc3339),
+        "finished_at": rec.finished_ms.map(rfc3339),
+        "input": { "name": rec.input_name, "bytes": rec.input_bytes, "format": rec.format },
+        "params": rec.params,
+        "stage": rec.stage,
+        "progress": rec.progress,
+        "stage_seconds": rec.stage_seconds,
+        "attempts": rec.attempts,
+        "summary": rec.summary,
+        "error": rec.error.as_ref().map(ApiError::job_problem),
+        "artifacts": artifacts,
+    })
+}
+
+fn parse_id(id: &str) -> Result<JobId, ApiError> {
+    id.parse::<JobId>().map_err(|e| ApiError::new("job-not-found", e.to_string()))
+}
+
+fn bad_query(e: QueryRejection) -> ApiError {
+    ApiError::new("invalid-query", e.body_text())
+}
+
+/// Builds the params JSON from the multipart part, `?params=` and `?stages=`.
+fn params_json(q: &SubmitQuery, part: Option<&[u8]>) -> Result<Value, ApiError> {
+    let given = match (part, q.params.as_deref()) {
+        (Some(_), Some(_)) => {
+            return Err(ApiError::new(
+                "bad-request",
+                "parameters given twice: both a `params` part and a `params` query parameter",
+            ));
+        }
+        (Some(p), None) => Some(p.to_vec()),
+        (None, Some(p)) => Some(p.as_bytes().to_vec()),
+        (None, None) => None,
+    };
+    if given.as_ref().is_some_and(|g| g.len() > upload::MAX_PARAMS_BYTES) {
+        return Err(ApiError::new("invalid-params", "parameters exceed 64 KiB"));
+    }
+    let mut value: Value = match &given {
+        Some(bytes) => {
+            // Validate fully first so errors name the field.
+            parse_params(bytes).map_err(ApiError::params)?;
+            serde_json::from_slice(bytes).map_err(|e| ApiError::new("invalid-json", e.to_string()))?
+        }
+        None => json!({}),
+    };
+    if let Some(stages) = q.stages.as_deref() {
+        let list: Vec<Value> =
+            stages.split(',').map(str::trim).filter(|s| !s.is_empty()).map(|s| Value::String(s.into())).collect();
+        match value.as_object_mut() {
+            Some(obj) if obj.contains_key("stages") => {
+                return Err(ApiError::new("bad-request", "stages given twice: in `params` and in `?stages=`"));
+            }
+            Some(obj) => {
+                obj.insert("stages".into(), Value::Array(list));
+            }
+            None => return Err(ApiError::new("invalid-params", "parameters must be a JSON object")),
+        }
+    }
+    let bytes = serde_json::to_vec(&value).map_err(ApiError::internal)?;
+    let params = parse_params(&bytes).map_err(ApiError::params)?;
+    serde_json::to_value(params).map_err(ApiError::internal)
+}
+
+/// `POST /v1/jobs`: stream the upload to disk, validate, queue the job.
+pub async fn submit_job(
+    State(st): State<AppState>,
+    query: Result<Query<SubmitQuery>, QueryRejection>,
+    req: Request,
+) -> Result<Response, ApiError> {
+    // Errors found before the body is read still read (and discard) it, so
+    // the client gets the answer rather than a reset connection.
+    let headers = req.headers().clone();
+    let early = async {
+        let Query(q) = query.map_err(bad_query)?;
+        let limit = st.limits.max_upload_bytes;
+        if upload::content_length(&headers).is_some_and(|n| n > limit) {
+            return Err(ApiError::upload_too_large(limit));
+        }
+        if !st.jobs.has_queue_room().await? {
+            return Err(queue_full(&st));
+        }
+        let is_multipart = upload::media_type(&headers).is_some_and(|m| m == "multipart/form-data");
+        // Parameters of a raw upload are all in the query: reject bad ones before reading the body.
+        let early_params = if is_multipart { None } else { Some(params_json(&q, None)?) };
+        Ok((q, limit, is_multipart, early_params))
+    };
+    let (q, limit, is_multipart, early_params) = match early.await {
+        Ok(v) => v,
+        Err(e) => {
+            upload::drain(req.into_body().into_data_stream()).await;
+            return Err(e);
+        }
+    };
+    let path = st.jobs.upload_path();
+    let mut up = if is_multipart {
+        let mp = axum::extract::Multipart::from_request(req, &st)
+            .await
+            .map_err(|e| ApiError::new("invalid-multipart", e.body_text()))?;
+        upload::receive_multipart(mp, path, limit).await?
+    } else {
+        upload::receive_raw(req.into_body(), &headers, path, limit).await?
+    };
+    if up.filename.is_none() {
+        up.filename = q.filename.clone();
+    }
+    let params = match early_params {
+        Some(p) => p,
+        None => params_json(&q, up.params_part.as_deref())?,
+    };
+    if up.bytes == 0 {
+        return Err(ApiError::new("empty-file", "the uploaded mesh file is empty (0 bytes)"));
+    }
+    let format = upload::resolve_format(q.format.as_deref(), &up)?;
+    let input_name = up
+        .filename
+        .as_deref()
+        .map(|n| n.rsplit(['/', '\\']).next().unwrap_or(n).chars().take(200).collect::<String>())
+        .filter(|n| !n.is_empty())
+        .unwrap_or_else(|| "upload".to_string());
+    let new = NewJob {
+        upload_path: up.path.clone(),
+        input_name,
+        input_bytes: up.bytes,
+        format: Some(format.extension().to_string()),
+        params,
+    };
+    let rec = match st.jobs.submit(new).await {
+        Ok(rec) => {
+            up.keep();
+            rec
+        }
+        Err(crate::jobs::JobsError::QueueFull { .. }) => return Err(queue_full(&st)),
+        Err(e) => return Err(e.into()),
+    };
+    let mut resp = (StatusCode::ACCEPTED, Json(job_json(&rec))).into_response();
+    if let Ok(v) = HeaderValue::from_str(&job_url(rec.id)) {
+        resp.headers_mut().insert(header::LOCATION, v);
+    }
+    Ok(resp)
+}
+
+fn queue_full(st: &AppState) -> ApiError {
+    let max = st.jobs.config().max_queued;
+    ApiError::new("queue-full", format!("the job queue is full ({max} jobs waiting); retry later"))
+        .retry_after(st.limits.retry_after_secs)
+        .with("max_queued", max)
+}
+
+/// `GET /v1/jobs/{id}`.
+pub async fn get_job(State(st): State<AppState>, Path(id): Path<String>) -> Result<Json<Value>, ApiError> {
+    let rec = st.jobs.get(parse_id(&id)?).await?;
+    Ok(Json(job_json(&rec)))
+}
+
+/// Query of `GET /v1/jobs`.
+#[derive(Debug, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct ListQuery {
+    /// Page size, 1–100 (default 20).
+    pub limit: Option<usize>,
+    /// `next_cursor` of the previous page.
+    pub cursor: Option<String>,
+}
+
+/// `GET /v1/jobs`: newest first, cursor pagination.
+pub async fn list_jobs(
+    State(st): State<AppState>,
+    query: Result<Query<ListQuery>, QueryRejection>,
+) -> Result<Json<Value>, ApiError> {
+    let Query(q) = query.map_err(bad_query)?;
+    let limit = q.limit.unwrap_or(20);
+    if !(1..=100).contains(&limit) {
+        return Err(ApiError::new("invalid-query", format!("limit {limit} is not in 1..=100")).with("field", "limit"));
+    }
+    let cursor = match q.cursor.as_deref() {
+        None | Some("") => None,
+        Some(c) => Some(c.parse::<i64>().map_err(|_| {
+            ApiError::new("invalid-query", format!("cursor `{c}` is not a cursor from a previous page"))
+                .with("field", "cursor")
+        })?),
+    };
+    let page = st.jobs.list(limit, cursor).await?;
+    Ok(Json(json!({
+        "jobs": page.jobs.iter().map(job_json).collect::<Vec<_>>(),
+        "next_cursor": page.next_cursor.map(|c| c.to_string()),
+    })))
+}
+
+/// `POST /v1/jobs/{id}/cancel`: stop a queued or running job, keep its record.
+pub async fn cancel_job(State(st): State<AppState>, Path(id): Path<String>) -> Result<Json<Value>, ApiError> {
+    let rec = st.jobs.cancel(parse_id(&id)?).await?;
+    Ok(Json(job_json(&rec)))
+}
+
+/// `DELETE /v1/jobs/{id}`: cancel if running, then remove record and files.
+pub async fn delete_job(State(st): State<AppState>, Path(id): Path<String>) -> Result<StatusCode, ApiError> {
+    st.jobs.delete(parse_id(&id)?).await?;
+    Ok(StatusCode::NO_CONTENT)
+}
+
+/// `GET /v1/jobs/{id}/artifacts/{name}`: the file, with Range support.
+pub async fn get_artifact(
+    State(st): State<AppState>,
+    Path((id, name)): Path<(String, String)>,
+    req: Request,
+) -> Result<Response, ApiError> {
+    let (path, art) = st.jobs.artifact(parse_id(&id)?, name).await?;
+    let served = tower_http::services::ServeFile::new(&path).oneshot(req).await.map_err(ApiError::internal)?;
+    if served.status() == StatusCode::NOT_FOUND {
+        return Err(ApiError::internal(format!("artifact file {} is missing", path.display())));
+    }
+    let mut resp = served.map(Body::new);
+    if resp.status().is_success() {
+        if let Ok(v) = HeaderValue::from_str(&art.media_type) {
+            resp.headers_mut().insert(header::CONTENT_TYPE, v);
+        }
+        if let Ok(v) = HeaderValue::from_str(&format!("attachment; filename=\"{}\"", art.name)) {
+            resp.headers_mut().insert(header::CONTENT_DISPOSITION, v);
+        }
+    }
+    Ok(resp)
+}
+
+/// `GET /healthz`.
+pub async fn healthz(State(st): State<AppState>) -> Result<Json<Value>, ApiError> {
+    st.jobs.health().await.map_err(|e| {
+        ApiError::new("service-unavailable", "the job store does not answer").with("cause", e.to_string())
+    })?;
+    Ok(Json(json!({"status": "ok", "version": env!("CARGO_PKG_VERSION")})))
+}
+
+/// `GET /metrics`: Prometheus text format.
+pub async fn metrics(State(st): State<AppState>) -> Result<Response, ApiError> {
+    let text = st.jobs.metrics_text().await?;
+    Ok(([(header::CONTENT_TYPE, "text/plain; version=0.0.4; charset=utf-8")], text).into_response())
+}
+
+/// Fallback for unknown paths.
+pub async fn not_found(req: Request) -> ApiError {
+    ApiError::new("not-found", format!("no route for {} {}; see api/openapi.yaml", req.method(), req.uri().path()))
+}

@@ -1,0 +1,264 @@
+//! Reading a job submission: the mesh streams to a file under the data
+//! directory chunk by chunk (never held in memory), with the configured size
+//! limit enforced while streaming (413), then cheap checks (empty file,
+//! unknown format) before the job is queued.
+//!
+//! Two body shapes are accepted on `POST /v1/jobs`:
+//! - raw: the body is the mesh file; format from `?format=`, else the
+//!   `Content-Type`, else sniffed from the first bytes; parameters from the
+//!   `params` query parameter (URL-encoded JSON) and/or the `stages`
+//!   shorthand (`?stages=atlas,crossfield`);
+//! - `multipart/form-data`: a `file` part (its file name's extension and
+//!   Content-Type help detect the format) and an optional `params` part
+//!   holding the JSON parameters.
+
+use std::path::{Path, PathBuf};
+
+use axum::body::Bytes;
+use axum::extract::Multipart;
+use axum::http::{HeaderMap, header};
+use futures_util::{Stream, StreamExt};
+use serde::Deserialize;
+use tokio::io::AsyncWriteExt;
+
+use super::error::ApiError;
+use crate::io::Format;
+
+/// Bytes kept from the start of the upload for format sniffing.
+pub const HEAD_BYTES: usize = 4096;
+/// Largest accepted `params` part or query value.
+pub const MAX_PARAMS_BYTES: usize = 64 * 1024;
+
+/// Query parameters of `POST /v1/jobs`.
+#[derive(Debug, Default, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct SubmitQuery {
+    /// Input format (`stl`, `obj`, `ply`, `msh`); overrides detection.
+    pub format: Option<String>,
+    /// Pipeline parameters as JSON (raw uploads; multipart may use a part).
+    pub params: Option<String>,
+    /// Comma-separated stages, shorthand for `{"stages": [...]}`.
+    pub stages: Option<String>,
+    /// Client-side file name for a raw upload (for reports).
+    pub filename: Option<String>,
+}
+
+/// A received upload, stored in a temporary file removed on drop unless
+/// [`Upload::keep`] is called.
+#[derive(Debug)]
+pub struct Upload {
+    /// The temporary file.
+    pub path: PathBuf,
+    /// Bytes received.
+    pub bytes: u64,
+    /// The first [`HEAD_BYTES`] bytes.
+    pub head: Vec<u8>,
+    /// File name given by the client (multipart file name or `?filename=`).
+    pub filename: Option<String>,
+    /// Content-Type of the body or of the file part.
+    pub content_type: Option<String>,
+    /// Raw JSON of a multipart `params` part.
+    pub params_part: Option<Vec<u8>>,
+    keep: bool,
+}
+
+impl Upload {
+    fn new(path: PathBuf) -> Self {
+        Self { path, bytes: 0, head: Vec::new(), filename: None, content_type: None, params_part: None, keep: false }
+    }
+
+    /// The file now belongs to someone else (the job); do not remove it.
+    pub fn keep(&mut self) {
+        self.keep = true;
+    }
+}
+
+impl Drop for Upload {
+    fn drop(&mut self) {
+        if !self.keep {
+            let _ = std::fs::remove_file(&self.path);
+        }
+    }
+}
+
+/// The declared body length, when the client sent one.
+pub fn content_length(headers: &HeaderMap) -> Option<u64> {
+    headers.get(header::CONTENT_LENGTH)?.to_str().ok()?.parse().ok()
+}
+
+/// The media type of a header value, lowercased, without parameters.
+pub fn media_type(headers: &HeaderMap) -> Option<String> {
+    let v = headers.get(header::CONTENT_TYPE)?.to_str().ok()?;
+    let mt = v.split(';').next().unwrap_or("").trim().to_ascii_lowercase();
+    (!mt.is_empty()).then_some(mt)
+}
+
+/// Most bytes read and discarded after a rejected upload.
+pub const DRAIN_MAX_BYTES: u64 = 16 * 1024 * 1024;
+/// Longest time spent discarding a rejected upload.
+pub const DRAIN_MAX_TIME: std::time::Duration = std::time::Duration::from_secs(2);
+
+/// Reads and discards what is left of a rejected upload (at most
+/// [`DRAIN_MAX_BYTES`] for at most [`DRAIN_MAX_TIME`]), so that a client
+/// still sending gets the error response instead of a connection reset.
+/// Larger uploads are cut off: the connection closes after the response.
+pub async fn drain<E>(mut stream: impl Stream<Item = Result<Bytes, E>> + Unpin) {
+    let discard = async {
+        let mut n = 0u64;
+        while let Some(Ok(chunk)) = stream.next().await {
+            n += chunk.len() as u64;
+            if n > DRAIN_MAX_BYTES {
+                break;
+            }
+        }
+    };
+    let _ = tokio::time::timeout(DRAIN_MAX_TIME, discard).await;
+}
+
+/// Streams `stream` into `upload`'s file, enforcing `limit` on the total.
+async fn stream_to_file<E: std::fmt::Display>(
+    mut stream: impl Stream<Item = Result<Bytes, E>> + Unpin,
+    upload: &mut Upload,
+    limit: u64,
+) -> Result<(), ApiError> {
+    let mut file = tokio::fs::File::create(&upload.path)
+        .await
+        .map_err(|e| ApiError::internal(format!("cannot create {}: {e}", upload.path.display())))?;
+    while let Some(chunk) = stream.next().await {
+        let chunk =
+            chunk.map_err(|e| ApiError::new("upload-interrupted", format!("reading the upload failed: {e}")))?;
+        upload.bytes += chunk.len() as u64;
+        if upload.bytes > limit {
+            drain(stream).await;
+            return Err(ApiError::upload_too_large(limit));
+        }
+        if upload.head.len() < HEAD_BYTES {
+            let take = (HEAD_BYTES - upload.head.len()).min(chunk.len());
+            upload.head.extend_from_slice(&chunk[..take]);
+        }
+        file.write_all(&chunk).await.map_err(|e| ApiError::internal(format!("writing the upload: {e}")))?;
+    }
+    file.sync_all().await.map_err(|e| ApiError::internal(format!("syncing the upload: {e}")))?;
+    Ok(())
+}
+
+/// Receives a raw body into `path`.
+///
+/// # Errors
+/// 413 past `limit`, 400 when the connection breaks, 500 on disk errors.
+pub async fn receive_raw(
+    body: axum::body::Body,
+    headers: &HeaderMap,
+    path: PathBuf,
+    limit: u64,
+) -> Result<Upload, ApiError> {
+    let mut up = Upload::new(path);
+    up.content_type = media_type(headers);
+    stream_to_file(body.into_data_stream(), &mut up, limit).await?;
+    Ok(up)
+}
+
+/// Reads a small text part (params) with a size cap.
+async fn read_small_part(mut field: axum::extract::multipart::Field<'_>, name: &str) -> Result<Vec<u8>, ApiError> {
+    let mut buf = Vec::new();
+    while let Some(chunk) =
+        field.chunk().await.map_err(|e| ApiError::new("invalid-multipart", format!("part `{name}`: {e}")))?
+    {
+        buf.extend_from_slice(&chunk);
+        if buf.len() > MAX_PARAMS_BYTES {
+            return Err(ApiError::new("invalid-params", format!("the `{name}` part exceeds {MAX_PARAMS_BYTES} bytes")));
+        }
+    }
+    Ok(buf)
+}
+
+/// Receives a multipart body: one `file` part (streamed to `path`) and an
+/// optional `params` part. Other part names are rejected.
+///
+/// # Errors
+/// 400 for malformed multipart, a missing or repeated part, or an unknown
+/// part; 413 past `limit`; 500 on disk errors.
+pub async fn receive_multipart(mut mp: Multipart, path: PathBuf, limit: u64) -> Result<Upload, ApiError> {
+    let mut up = Upload::new(path);
+    let mut have_file = false;
+    loop {
+        let field = mp.next_field().await.map_err(|e| ApiError::new("invalid-multipart", e.body_text()))?;
+        let Some(field) = field else { break };
+        let name = field.name().unwrap_or("").to_string();
+        match name.as_str() {
+            "file" => {
+                if have_file {
+                    return Err(ApiError::new("invalid-multipart", "more than one `file` part"));
+                }
+                have_file = true;
+                up.filename = field.file_name().map(str::to_string);
+                up.content_type =
+                    field.content_type().map(|c| c.split(';').next().unwrap_or("").trim().to_ascii_lowercase());
+                stream_to_file(field, &mut up, limit).await?;
+            }
+            "params" => {
+                if up.params_part.is_some() {
+                    return Err(ApiError::new("invalid-multipart", "more than one `params` part"));
+                }
+                up.params_part = Some(read_small_part(field, "params").await?);
+            }
+            other => {
+                return Err(ApiError::new(
+                    "invalid-multipart",
+                    format!("unknown part `{other}`; expected `file` and optionally `params`"),
+                )
+                .with("part", other));
+            }
+        }
+    }
+    if !have_file {
+        return Err(ApiError::new("missing-file", "the multipart body has no `file` part"));
+    }
+    Ok(up)
+}
+
+/// Media types that say nothing about the format (then it is detected).
+fn is_generic_media_type(mt: &str) -> bool {
+    matches!(mt, "application/octet-stream" | "text/plain" | "application/x-www-form-urlencoded")
+}
+
+/// The input format from, in order: `?format=`, the Content-Type, the file
+/// name's extension, the content (first bytes and total size).
+///
+/// # Errors
+/// 400 for an unknown `?format=`; 415 for a Content-Type that is not a mesh
+/// (`unsupported-media-type`) or content that is no known format
+/// (`unknown-format`).
+pub fn resolve_format(explicit: Option<&str>, upload: &Upload) -> Result<Format, ApiError> {
+    if let Some(name) = explicit {
+        return Format::from_name(name).ok_or_else(|| {
+            let names: Vec<&str> = Format::ALL.iter().map(|f| f.extension()).collect();
+            ApiError::new("invalid-query", format!("format `{name}` is not one of {}", names.join(", ")))
+                .with("field", "format")
+        });
+    }
+    if let Some(mt) = upload.content_type.as_deref()
+        && !is_generic_media_type(mt)
+    {
+        return Format::from_media_type(mt).ok_or_else(|| {
+            ApiError::new(
+                "unsupported-media-type",
+                format!(
+                    "Content-Type `{mt}` is not a mesh format; send model/stl, model/obj, model/ply, \
+                     application/x-gmsh or application/octet-stream, or multipart/form-data"
+                ),
+            )
+        });
+    }
+    let ext = upload.filename.as_deref().and_then(|n| Path::new(n).extension()).and_then(|e| e.to_str());
+    if let Some(f) = ext.and_then(Format::from_extension) {
+        return Ok(f);
+    }
+    Format::sniff(&upload.head, Some(upload.bytes)).ok_or_else(|| {
+        ApiError::new(
+            "unknown-format",
+            "the upload is not recognised as STL, OBJ, PLY or MSH; name the format with ?format= \
+             or a file name extension",
+        )
+    })
+}

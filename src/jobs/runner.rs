@@ -1,0 +1,438 @@
+//! The runner: a dispatcher thread that claims queued jobs from the store and
+//! runs them on a rayon pool of `workers` threads, a watchdog for the per-job
+//! time limit, progress persistence and the end-of-job bookkeeping.
+//!
+//! Concurrency is bounded by claiming at most `workers` jobs at a time; the
+//! queue itself is the `queued` rows of the store, so it survives restarts.
+//! Every job runs inside `catch_unwind`: a panic fails that job only.
+//!
+//! Lock order: `running` before the store's connection. The dispatcher claims
+//! a job and registers it in `running` under one lock, so a concurrent cancel
+//! or delete sees the job either queued (in the store) or running (in the map).
+
+use std::collections::{BTreeMap, HashMap};
+use std::panic::AssertUnwindSafe;
+use std::path::{Path, PathBuf};
+use std::sync::atomic::{AtomicBool, Ordering};
+use std::sync::{Arc, Condvar, Mutex, MutexGuard};
+use std::time::{Duration, Instant};
+
+use tracing::{error, info, warn};
+
+use crate::pipeline::media_type_for;
+use crate::progress::{Progress, ProgressSink};
+
+use super::executor::{ExecError, Executor, JobInput, JobOutcome};
+use super::metrics::Metrics;
+use super::model::{Artifact, JobError, JobId, JobRecord, JobState};
+use super::store::Store;
+
+/// Settings of the job service.
+#[derive(Debug, Clone)]
+pub struct JobsConfig {
+    /// Directory for the database, uploads and artifacts.
+    pub data_dir: PathBuf,
+    /// Jobs run at the same time (rayon pool size). Default 1.
+    pub workers: usize,
+    /// Most jobs waiting in the queue; submissions beyond get 429. Default 64.
+    pub max_queued: usize,
+    /// Wall-time limit of one job attempt. Default 1 h.
+    pub job_timeout: Duration,
+    /// Times a job may be interrupted by a crash before it is failed. Default 3.
+    pub max_attempts: u32,
+    /// Server-wide triangle cap, applied on top of each job's own. Default 5e6.
+    pub max_triangles: usize,
+    /// Least time between two progress writes to the store. Default 250 ms.
+    pub progress_interval: Duration,
+}
+
+impl JobsConfig {
+    /// Defaults with the given data directory.
+    pub fn new(data_dir: impl Into<PathBuf>) -> Self {
+        Self {
+            data_dir: data_dir.into(),
+            workers: 1,
+            max_queued: 64,
+            job_timeout: Duration::from_secs(3600),
+            max_attempts: 3,
+            max_triangles: 5_000_000,
+            progress_interval: Duration::from_millis(250),
+        }
+    }
+
+    /// Directory of one job (input and `out/`).
+    pub fn job_dir(&self, id: JobId) -> PathBuf {
+        self.data_dir.join("jobs").join(id.to_string())
+    }
+
+    /// Directory of a job's artifacts.
+    pub fn out_dir(&self, id: JobId) -> PathBuf {
+        self.job_dir(id).join("out")
+    }
+
+    /// The stored upload of a job: `input/<name>` in its directory, under
+    /// the (sanitized) client file name so reports show it.
+    pub fn input_path(&self, id: JobId, input_name: &str) -> PathBuf {
+        self.job_dir(id).join("input").join(super::model::sanitize_file_name(input_name))
+    }
+}
+
+/// Why a running job was asked to stop.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub(crate) enum StopReason {
+    /// A client cancelled it; the record stays, state `cancelled`.
+    Cancel,
+    /// A client deleted it; the record and files go.
+    Delete,
+    /// It exceeded the time limit; state `failed`, kind `time-limit-exceeded`.
+    Timeout,
+    /// The server is shutting down; the job goes back to the queue.
+    Shutdown,
+}
+
+/// Progress of a running job as last reported (newer than the store).
+#[derive(Debug, Clone)]
+pub(crate) struct Live {
+    pub stage: String,
+    pub fraction: f64,
+    pub stage_seconds: BTreeMap<String, f64>,
+    stage_started: Instant,
+    last_write: Option<Instant>,
+}
+
+/// A job a worker is running.
+pub(crate) struct RunningJob {
+    pub cancel: Arc<AtomicBool>,
+    reason: Mutex<Option<StopReason>>,
+    deadline: Instant,
+    pub live: Mutex<Live>,
+}
+
+fn lock<T>(m: &Mutex<T>) -> MutexGuard<'_, T> {
+    m.lock().unwrap_or_else(|p| p.into_inner())
+}
+
+impl RunningJob {
+    fn new(timeout: Duration) -> Self {
+        let now = Instant::now();
+        Self {
+            cancel: Arc::new(AtomicBool::new(false)),
+            reason: Mutex::new(None),
+            deadline: now + timeout,
+            live: Mutex::new(Live {
+                stage: String::new(),
+                fraction: 0.0,
+                stage_seconds: BTreeMap::new(),
+                stage_started: now,
+                last_write: None,
+            }),
+        }
+    }
+
+    /// Asks the job to stop; the first reason wins.
+    pub fn stop(&self, why: StopReason) {
+        let mut r = lock(&self.reason);
+        if r.is_none() {
+            *r = Some(why);
+        }
+        self.cancel.store(true, Ordering::Relaxed);
+    }
+
+    fn reason(&self) -> Option<StopReason> {
+        *lock(&self.reason)
+    }
+
+    /// Per-stage seconds including the stage still running.
+    pub fn stage_seconds_now(&self) -> BTreeMap<String, f64> {
+        let live = lock(&self.live);
+        let mut secs = live.stage_seconds.clone();
+        if !live.stage.is_empty() {
+            *secs.entry(live.stage.clone()).or_default() += live.stage_started.elapsed().as_secs_f64();
+        }
+        secs
+    }
+}
+
+/// State shared by the service handle, the dispatcher and the workers.
+pub(crate) struct Inner {
+    pub config: JobsConfig,
+    pub store: Store,
+    pub executor: Arc<dyn Executor>,
+    pub pool: rayon::ThreadPool,
+    pub running: Mutex<HashMap<JobId, Arc<RunningJob>>>,
+    pub wake: Condvar,
+    pub shutdown: AtomicBool,
+    pub metrics: Metrics,
+}
+
+impl Inner {
+    pub fn running(&self) -> MutexGuard<'_, HashMap<JobId, Arc<RunningJob>>> {
+        lock(&self.running)
+    }
+}
+
+/// The dispatcher loop: enforce time limits, start queued jobs while workers
+/// are free, sleep until woken (submit, job end) or 100 ms pass.
+pub(crate) fn dispatch_loop(inner: Arc<Inner>) {
+    let mut running = inner.running();
+    loop {
+        if inner.shutdown.load(Ordering::Relaxed) {
+            return;
+        }
+        let now = Instant::now();
+        for (id, job) in running.iter() {
+            if now >= job.deadline && job.reason().is_none() {
+                warn!(job = %id, "job exceeded its time limit; stopping it");
+                job.stop(StopReason::Timeout);
+            }
+        }
+        while running.len() < inner.config.workers {
+            match inner.store.claim_next() {
+                Ok(Some(rec)) => {
+                    let job = Arc::new(RunningJob::new(inner.config.job_timeout));
+                    running.insert(rec.id, job.clone());
+                    let inner2 = inner.clone();
+                    inner.pool.spawn(move || run_job(&inner2, rec, &job));
+                }
+                Ok(None) => break,
+                Err(e) => {
+                    error!(error = %e, "cannot claim the next job");
+                    break;
+                }
+            }
+        }
+        running = match inner.wake.wait_timeout(running, Duration::from_millis(100)) {
+            Ok((g, _)) => g,
+            Err(p) => p.into_inner().0,
+        };
+    }
+}
+
+/// Persists progress of one job, throttled.
+struct JobSink {
+    inner: Arc<Inner>,
+    id: JobId,
+    job: Arc<RunningJob>,
+}
+
+impl ProgressSink for JobSink {
+    fn report(&self, stage: &str, fraction: f64) {
+        let now = Instant::now();
+        let write = {
+            let mut live = lock(&self.job.live);
+            let mut force = false;
+            if live.stage != stage {
+                if !live.stage.is_empty() {
+                    let spent = now.duration_since(live.stage_started).as_secs_f64();
+                    let prev = live.stage.clone();
+                    *live.stage_seconds.entry(prev).or_default() += spent;
+                }
+                live.stage = stage.to_string();
+                live.stage_started = now;
+                force = true;
+            }
+            live.fraction = fraction;
+            let due = live.last_write.is_none_or(|t| now.duration_since(t) >= self.inner.config.progress_interval);
+            if force || due {
+                live.last_write = Some(now);
+                Some((live.stage.clone(), live.fraction, live.stage_seconds.clone()))
+            } else {
+                None
+            }
+        };
+        if let Some((stage, fraction, secs)) = write
+            && let Err(e) = self.inner.store.set_progress(self.id, &stage, fraction, &secs)
+        {
+            warn!(job = %self.id, error = %e, "cannot persist progress");
+        }
+    }
+}
+
+/// Checks the outcome's artifacts against the files in `out_dir` (sizes
+/// from disk) and adds files the executor wrote but did not list.
+fn artifacts_on_disk(out_dir: &Path, listed: &[Artifact]) -> std::io::Result<Vec<Artifact>> {
+    let mut by_name: BTreeMap<String, Artifact> = BTreeMap::new();
+    for entry in std::fs::read_dir(out_dir)? {
+        let entry = entry?;
+        let meta = entry.metadata()?;
+        let Some(name) = entry.file_name().to_str().map(str::to_string) else { continue };
+        if !meta.is_file() {
+            continue;
+        }
+        let media_type = listed
+            .iter()
+            .find(|a| a.name == name)
+            .map(|a| a.media_type.clone())
+            .unwrap_or_else(|| media_type_for(&name).to_string());
+        by_name.insert(name.clone(), Artifact { name, bytes: meta.len(), media_type });
+    }
+    for a in listed {
+        if !by_name.contains_key(&a.name) {
+            warn!(artifact = %a.name, "executor listed an artifact it did not write");
+        }
+    }
+    Ok(by_name.into_values().collect())
+}
+
+/// Text of a caught panic payload.
+pub(crate) fn panic_message(payload: &(dyn std::any::Any + Send)) -> String {
+    if let Some(s) = payload.downcast_ref::<&str>() {
+        (*s).to_string()
+    } else if let Some(s) = payload.downcast_ref::<String>() {
+        s.clone()
+    } else {
+        "non-string panic payload".to_string()
+    }
+}
+
+/// Runs one claimed job on a worker thread and records how it ended.
+fn run_job(inner: &Arc<Inner>, rec: JobRecord, job: &Arc<RunningJob>) {
+    let span = tracing::info_span!("job", id = %rec.id, attempt = rec.attempts);
+    let _enter = span.enter();
+    let started = Instant::now();
+    info!(input = %rec.input_name, bytes = rec.input_bytes, "job started");
+    let out_dir = inner.config.out_dir(rec.id);
+    let prepared = std::fs::remove_dir_all(&out_dir)
+        .or_else(|e| if e.kind() == std::io::ErrorKind::NotFound { Ok(()) } else { Err(e) })
+        .and_then(|()| std::fs::create_dir_all(&out_dir));
+    let result = match prepared {
+        Err(e) => {
+            error!(error = %e, dir = %out_dir.display(), "cannot prepare the output directory");
+            Ok(Err(ExecError::Failed(JobError::new("internal-error", "the server could not store the job's files"))))
+        }
+        Ok(()) => {
+            let input = JobInput {
+                id: rec.id,
+                input: inner.config.input_path(rec.id, &rec.input_name),
+                input_name: rec.input_name.clone(),
+                format: rec.format.clone(),
+                params: rec.params.clone(),
+                out_dir: out_dir.clone(),
+                max_triangles: inner.config.max_triangles,
+            };
+            let sink = Arc::new(JobSink { inner: inner.clone(), id: rec.id, job: job.clone() });
+            let progress = Progress::new(sink, job.cancel.clone());
+            let executor = inner.executor.clone();
+            std::panic::catch_unwind(AssertUnwindSafe(|| executor.execute(&input, &progress)))
+        }
+    };
+    let live_seconds = job.stage_seconds_now();
+    let final_state = record_result(inner, &rec, job, result, &out_dir, live_seconds, started);
+    if let Some(state) = final_state {
+        info!(state = state.as_str(), seconds = started.elapsed().as_secs_f64(), "job finished");
+    }
+    inner.running().remove(&rec.id);
+    inner.wake.notify_all();
+}
+
+/// Stores the end of a job; returns its final state (`None` when it was
+/// deleted or put back in the queue). Metrics are counted before the final
+/// state is stored, so a client that sees the state also sees the metrics.
+fn record_result(
+    inner: &Arc<Inner>,
+    rec: &JobRecord,
+    job: &RunningJob,
+    result: std::thread::Result<Result<JobOutcome, ExecError>>,
+    out_dir: &Path,
+    live_seconds: BTreeMap<String, f64>,
+    started: Instant,
+) -> Option<JobState> {
+    let store = &inner.store;
+    let reason = job.reason();
+    let count = |state: JobState, secs: &BTreeMap<String, f64>| {
+        inner.metrics.job_finished(state, started.elapsed().as_secs_f64(), secs);
+    };
+    let failed = |e: JobError, secs: &BTreeMap<String, f64>| {
+        count(JobState::Failed, secs);
+        match store.finish_failed(rec.id, &e, secs) {
+            Ok(true) => Some(JobState::Failed),
+            Ok(false) => None,
+            Err(err) => {
+                error!(error = %err, "cannot record the job failure");
+                None
+            }
+        }
+    };
+    let outcome = match (reason, result) {
+        (Some(StopReason::Delete), _) => {
+            remove_job_dir(&inner.config, rec.id);
+            return None;
+        }
+        (Some(StopReason::Shutdown), _) => {
+            if let Err(e) = store.requeue(rec.id) {
+                error!(error = %e, "cannot put the job back in the queue");
+            }
+            return None;
+        }
+        (Some(StopReason::Cancel), _) => {
+            count(JobState::Cancelled, &live_seconds);
+            return match store.cancel_if(rec.id, JobState::Running) {
+                Ok(true) => Some(JobState::Cancelled),
+                Ok(false) => None,
+                Err(e) => {
+                    error!(error = %e, "cannot record the cancellation");
+                    None
+                }
+            };
+        }
+        (_, Err(payload)) => {
+            inner.metrics.job_panicked();
+            error!(panic = %panic_message(payload.as_ref()), "job panicked");
+            return failed(
+                JobError::new("internal-error", "the job stopped because of an internal error; it has been logged"),
+                &live_seconds,
+            );
+        }
+        (Some(StopReason::Timeout), Ok(Err(_))) => {
+            let limit = inner.config.job_timeout.as_secs_f64();
+            return failed(
+                JobError::new(
+                    "time-limit-exceeded",
+                    format!("the job ran longer than the server's limit of {limit} s and was stopped"),
+                ),
+                &live_seconds,
+            );
+        }
+        (_, Ok(Err(ExecError::Failed(e)))) => {
+            info!(kind = %e.kind, detail = %e.detail, "job failed");
+            return failed(e, &live_seconds);
+        }
+        (None, Ok(Err(ExecError::Cancelled))) => {
+            return failed(JobError::new("internal-error", "the job stopped without being asked to"), &live_seconds);
+        }
+        (_, Ok(Ok(outcome))) => outcome,
+    };
+    let artifacts = match artifacts_on_disk(out_dir, &outcome.artifacts) {
+        Ok(a) => a,
+        Err(e) => {
+            error!(error = %e, "cannot list the job's artifacts");
+            return failed(JobError::new("internal-error", "the server could not list the job's files"), &live_seconds);
+        }
+    };
+    let mut secs = outcome.stage_seconds.clone();
+    for (k, v) in live_seconds {
+        secs.entry(k).or_insert(v);
+    }
+    count(JobState::Succeeded, &secs);
+    match store.finish_succeeded(rec.id, &outcome.summary, &secs, &artifacts) {
+        Ok(true) => Some(JobState::Succeeded),
+        Ok(false) => {
+            remove_job_dir(&inner.config, rec.id);
+            None
+        }
+        Err(e) => {
+            error!(error = %e, "cannot record the job result");
+            None
+        }
+    }
+}
+
+/// Removes a job's directory, logging failures other than "not there".
+pub(crate) fn remove_job_dir(config: &JobsConfig, id: JobId) {
+    let dir = config.job_dir(id);
+    if let Err(e) = std::fs::remove_dir_all(&dir)
+        && e.kind() != std::io::ErrorKind::NotFound
+    {
+        warn!(dir = %dir.display(), error = %e, "cannot remove job directory");
+    }
+}

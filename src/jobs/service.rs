@@ -1,0 +1,382 @@
+//! [`JobService`]: the async face of the job machinery used by the HTTP
+//! layer. Every store or file operation runs on tokio's blocking pool, and
+//! numerical work runs on the rayon pool, so the async runtime never blocks.
+
+use std::path::PathBuf;
+use std::sync::atomic::{AtomicBool, Ordering};
+use std::sync::{Arc, Condvar, Mutex};
+use std::time::{Duration, Instant};
+
+use tracing::{info, warn};
+
+use super::executor::Executor;
+use super::metrics::{Gauges, Metrics};
+use super::model::{JobId, JobPage, JobRecord, JobState, NewJob};
+use super::runner::{Inner, JobsConfig, StopReason, dispatch_loop, panic_message, remove_job_dir};
+use super::store::{Store, StoreError};
+
+/// How long cancel and delete wait for a running job to stop.
+pub const STOP_WAIT: Duration = Duration::from_secs(2);
+
+/// Errors of the job service.
+#[derive(Debug, thiserror::Error)]
+pub enum JobsError {
+    /// The job store failed.
+    #[error(transparent)]
+    Store(#[from] StoreError),
+    /// A file operation in the data directory failed.
+    #[error("{what}: {source}")]
+    Io {
+        /// What was being done, with the path.
+        what: String,
+        /// The OS error.
+        source: std::io::Error,
+    },
+    /// The queue already holds the configured maximum of jobs.
+    #[error("the job queue is full ({max_queued} jobs waiting); retry later")]
+    QueueFull {
+        /// The configured queue length.
+        max_queued: usize,
+    },
+    /// No job with this id.
+    #[error("job {0} does not exist")]
+    NotFound(JobId),
+    /// The job has no artifact of this name.
+    #[error("job {id} has no artifact named `{name}`")]
+    ArtifactNotFound {
+        /// The job.
+        id: JobId,
+        /// The requested name.
+        name: String,
+    },
+    /// A worker or blocking task failed unexpectedly.
+    #[error("internal error: {0}")]
+    Internal(String),
+}
+
+fn io_err(what: impl Into<String>) -> impl FnOnce(std::io::Error) -> JobsError {
+    let what = what.into();
+    move |source| JobsError::Io { what, source }
+}
+
+/// Handle to the durable job service; cheap to clone.
+#[derive(Clone)]
+pub struct JobService {
+    inner: Arc<Inner>,
+}
+
+impl JobService {
+    /// Opens the store in `config.data_dir`, recovers jobs interrupted by a
+    /// crash, removes orphaned files and starts the dispatcher and workers.
+    ///
+    /// # Errors
+    /// [`JobsError`] when the data directory or database cannot be opened.
+    pub fn start(config: JobsConfig, executor: Arc<dyn Executor>) -> Result<Self, JobsError> {
+        let jobs_dir = config.data_dir.join("jobs");
+        std::fs::create_dir_all(&jobs_dir).map_err(io_err(format!("cannot create {}", jobs_dir.display())))?;
+        let tmp = config.data_dir.join("tmp");
+        if tmp.exists() {
+            std::fs::remove_dir_all(&tmp).map_err(io_err(format!("cannot clean {}", tmp.display())))?;
+        }
+        std::fs::create_dir_all(&tmp).map_err(io_err(format!("cannot create {}", tmp.display())))?;
+        let store = Store::open(&config.data_dir.join("meshatlas.sqlite3"))?;
+        let recovery = store.recover_interrupted(config.max_attempts)?;
+        if !recovery.requeued.is_empty() || !recovery.failed.is_empty() {
+            warn!(requeued = recovery.requeued.len(), failed = recovery.failed.len(), "recovered interrupted jobs");
+        }
+        remove_orphans(&store, &jobs_dir)?;
+        let workers = config.workers.max(1);
+        let pool = rayon::ThreadPoolBuilder::new()
+            .num_threads(workers)
+            .thread_name(|i| format!("meshatlas-worker-{i}"))
+            .panic_handler(|p| tracing::error!(panic = %panic_message(p.as_ref()), "panic escaped a job"))
+            .build()
+            .map_err(|e| JobsError::Internal(format!("cannot build the worker pool: {e}")))?;
+        let inner = Arc::new(Inner {
+            config: JobsConfig { workers, ..config },
+            store,
+            executor,
+            pool,
+            running: Mutex::new(Default::default()),
+            wake: Condvar::new(),
+            shutdown: AtomicBool::new(false),
+            metrics: Metrics::default(),
+        });
+        let d = inner.clone();
+        std::thread::Builder::new()
+            .name("meshatlas-dispatcher".into())
+            .spawn(move || dispatch_loop(d))
+            .map_err(|e| JobsError::Internal(format!("cannot start the dispatcher: {e}")))?;
+        info!(data_dir = %inner.config.data_dir.display(), workers, "job service started");
+        Ok(Self { inner })
+    }
+
+    /// The configuration in force.
+    pub fn config(&self) -> &JobsConfig {
+        &self.inner.config
+    }
+
+    async fn blocking<T: Send + 'static>(
+        &self,
+        f: impl FnOnce(&Arc<Inner>) -> Result<T, JobsError> + Send + 'static,
+    ) -> Result<T, JobsError> {
+        let inner = self.inner.clone();
+        tokio::task::spawn_blocking(move || f(&inner))
+            .await
+            .map_err(|e| JobsError::Internal(format!("blocking task failed: {e}")))?
+    }
+
+    /// A fresh path under the data directory to stream an upload into.
+    pub fn upload_path(&self) -> PathBuf {
+        self.inner.config.data_dir.join("tmp").join(format!("upload-{}.part", uuid::Uuid::new_v4().simple()))
+    }
+
+    /// True when the queue can take another job (checked before an upload is
+    /// read; [`JobService::submit`] checks again atomically).
+    ///
+    /// # Errors
+    /// [`JobsError::Store`] on database failure.
+    pub async fn has_queue_room(&self) -> Result<bool, JobsError> {
+        self.blocking(|i| Ok(i.store.queued_count()? < i.config.max_queued)).await
+    }
+
+    /// Moves the upload into a new job directory and queues the job.
+    ///
+    /// # Errors
+    /// [`JobsError::QueueFull`] when the queue is full (the upload is
+    /// removed), [`JobsError::Io`]/[`JobsError::Store`] on storage failure.
+    pub async fn submit(&self, new: NewJob) -> Result<JobRecord, JobsError> {
+        self.blocking(move |inner| {
+            let id = JobId::random();
+            let dir = inner.config.job_dir(id);
+            let input_name = super::model::sanitize_file_name(&new.input_name);
+            let input_path = inner.config.input_path(id, &input_name);
+            let cleanup = |inner: &Inner| {
+                let _ = std::fs::remove_file(&new.upload_path);
+                remove_job_dir(&inner.config, id);
+            };
+            let moved = std::fs::create_dir_all(dir.join("input"))
+                .and_then(|()| std::fs::rename(&new.upload_path, &input_path))
+                .map_err(io_err(format!("cannot store the upload in {}", dir.display())));
+            if let Err(e) = moved {
+                cleanup(inner);
+                return Err(e);
+            }
+            let rec = inner.store.insert_queued(
+                id,
+                &input_name,
+                new.input_bytes,
+                new.format.as_deref(),
+                &new.params,
+                inner.config.max_queued,
+            );
+            match rec {
+                Ok(Some(rec)) => {
+                    inner.wake.notify_all();
+                    info!(job = %id, input = %input_name, bytes = new.input_bytes, "job queued");
+                    Ok(rec)
+                }
+                Ok(None) => {
+                    cleanup(inner);
+                    Err(JobsError::QueueFull { max_queued: inner.config.max_queued })
+                }
+                Err(e) => {
+                    cleanup(inner);
+                    Err(e.into())
+                }
+            }
+        })
+        .await
+    }
+
+    /// The job with `id`, with live progress for a running job.
+    ///
+    /// # Errors
+    /// [`JobsError::NotFound`], or [`JobsError::Store`] on database failure.
+    pub async fn get(&self, id: JobId) -> Result<JobRecord, JobsError> {
+        self.blocking(move |inner| get_live(inner, id)).await
+    }
+
+    /// Up to `limit` jobs older than `cursor`, newest first.
+    ///
+    /// # Errors
+    /// [`JobsError::Store`] on database failure.
+    pub async fn list(&self, limit: usize, cursor: Option<i64>) -> Result<JobPage, JobsError> {
+        self.blocking(move |inner| {
+            let mut page = inner.store.list(limit, cursor)?;
+            let running = inner.running();
+            for rec in &mut page.jobs {
+                if let Some(job) = running.get(&rec.id) {
+                    overlay_live(rec, job);
+                }
+            }
+            Ok(page)
+        })
+        .await
+    }
+
+    /// Asks a job to stop for `why`; returns whether it was running. A queued
+    /// job is cancelled (or deleted) directly in the store.
+    fn stop(inner: &Inner, id: JobId, why: StopReason) -> Result<bool, JobsError> {
+        let running = inner.running();
+        if let Some(job) = running.get(&id) {
+            job.stop(why);
+            return Ok(true);
+        }
+        match why {
+            StopReason::Delete => {
+                if !inner.store.delete(id)? {
+                    return Err(JobsError::NotFound(id));
+                }
+            }
+            _ => {
+                if !inner.store.cancel_if(id, JobState::Queued)? && inner.store.get(id)?.is_none() {
+                    return Err(JobsError::NotFound(id));
+                }
+            }
+        }
+        Ok(false)
+    }
+
+    async fn wait_stopped(&self, id: JobId) {
+        let start = Instant::now();
+        while start.elapsed() < STOP_WAIT && self.inner.running().contains_key(&id) {
+            tokio::time::sleep(Duration::from_millis(10)).await;
+        }
+    }
+
+    /// Cancels a queued or running job (a running one stops at its next
+    /// progress check, waited for up to [`STOP_WAIT`]). A finished job is
+    /// left as it is. Returns the job as it is afterwards.
+    ///
+    /// # Errors
+    /// [`JobsError::NotFound`], or [`JobsError::Store`] on database failure.
+    pub async fn cancel(&self, id: JobId) -> Result<JobRecord, JobsError> {
+        let was_running = self.blocking(move |inner| Self::stop(inner, id, StopReason::Cancel)).await?;
+        if was_running {
+            self.wait_stopped(id).await;
+        }
+        info!(job = %id, "job cancelled");
+        self.get(id).await
+    }
+
+    /// Cancels the job if needed and removes its record and files.
+    ///
+    /// # Errors
+    /// [`JobsError::NotFound`], or storage errors.
+    pub async fn delete(&self, id: JobId) -> Result<(), JobsError> {
+        let was_running = self.blocking(move |inner| Self::stop(inner, id, StopReason::Delete)).await?;
+        if was_running {
+            self.wait_stopped(id).await;
+            self.blocking(move |inner| {
+                inner.store.delete(id)?;
+                Ok(())
+            })
+            .await?;
+        }
+        self.blocking(move |inner| {
+            remove_job_dir(&inner.config, id);
+            Ok(())
+        })
+        .await?;
+        info!(job = %id, "job deleted");
+        Ok(())
+    }
+
+    /// Path of a finished job's artifact, if the job lists it.
+    ///
+    /// # Errors
+    /// [`JobsError::NotFound`], [`JobsError::ArtifactNotFound`] or storage errors.
+    pub async fn artifact(&self, id: JobId, name: String) -> Result<(PathBuf, super::model::Artifact), JobsError> {
+        self.blocking(move |inner| {
+            let rec = inner.store.get(id)?.ok_or(JobsError::NotFound(id))?;
+            let art = rec
+                .artifacts
+                .iter()
+                .find(|a| a.name == name)
+                .cloned()
+                .ok_or(JobsError::ArtifactNotFound { id, name })?;
+            Ok((inner.config.out_dir(id).join(&art.name), art))
+        })
+        .await
+    }
+
+    /// Prometheus text of the service metrics.
+    ///
+    /// # Errors
+    /// [`JobsError::Store`] on database failure.
+    pub async fn metrics_text(&self) -> Result<String, JobsError> {
+        self.blocking(|inner| {
+            let jobs_by_state = inner.store.count_by_state()?;
+            let g = Gauges {
+                queue_depth: jobs_by_state.get(&JobState::Queued).copied().unwrap_or(0),
+                jobs_by_state,
+                workers_busy: inner.running().len() as u64,
+                workers: inner.config.workers as u64,
+            };
+            Ok(inner.metrics.render(&g))
+        })
+        .await
+    }
+
+    /// Checks that the store answers.
+    ///
+    /// # Errors
+    /// [`JobsError::Store`] when it does not.
+    pub async fn health(&self) -> Result<(), JobsError> {
+        self.blocking(|inner| {
+            inner.store.queued_count()?;
+            Ok(())
+        })
+        .await
+    }
+
+    /// Stops the dispatcher and asks running jobs to stop; they go back to
+    /// the queue (not counted as an attempt). Waits up to `wait` for them.
+    pub async fn shutdown(&self, wait: Duration) {
+        self.inner.shutdown.store(true, Ordering::Relaxed);
+        self.inner.wake.notify_all();
+        for job in self.inner.running().values() {
+            job.stop(StopReason::Shutdown);
+        }
+        let start = Instant::now();
+        while start.elapsed() < wait && !self.inner.running().is_empty() {
+            tokio::time::sleep(Duration::from_millis(20)).await;
+        }
+        info!(still_running = self.inner.running().len(), "job service stopped");
+    }
+}
+
+fn overlay_live(rec: &mut JobRecord, job: &super::runner::RunningJob) {
+    let secs = job.stage_seconds_now();
+    let live = job.live.lock().unwrap_or_else(|p| p.into_inner());
+    if !live.stage.is_empty() {
+        rec.stage = Some(live.stage.clone());
+        rec.progress = live.fraction;
+    }
+    rec.stage_seconds = secs;
+}
+
+fn get_live(inner: &Inner, id: JobId) -> Result<JobRecord, JobsError> {
+    let mut rec = inner.store.get(id)?.ok_or(JobsError::NotFound(id))?;
+    if rec.state == JobState::Running
+        && let Some(job) = inner.running().get(&id)
+    {
+        overlay_live(&mut rec, job);
+    }
+    Ok(rec)
+}
+
+/// Removes job directories with no record (crash between file and row).
+fn remove_orphans(store: &Store, jobs_dir: &std::path::Path) -> Result<(), JobsError> {
+    let known: std::collections::HashSet<String> = store.all_ids()?.into_iter().collect();
+    let entries = std::fs::read_dir(jobs_dir).map_err(io_err(format!("cannot read {}", jobs_dir.display())))?;
+    for entry in entries.flatten() {
+        let name = entry.file_name().to_string_lossy().into_owned();
+        if !known.contains(&name) {
+            warn!(dir = %entry.path().display(), "removing orphaned job directory");
+            let _ = std::fs::remove_dir_all(entry.path());
+        }
+    }
+    Ok(())
+}

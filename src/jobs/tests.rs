@@ -1,0 +1,232 @@
+//! Job machinery tests with injected executors (no meshes involved).
+
+use std::sync::Arc;
+use std::sync::atomic::{AtomicUsize, Ordering};
+use std::time::{Duration, Instant};
+
+use super::*;
+use crate::progress::Progress;
+
+fn config(dir: &std::path::Path) -> JobsConfig {
+    JobsConfig { progress_interval: Duration::from_millis(10), ..JobsConfig::new(dir) }
+}
+
+async fn submit(svc: &JobService) -> Result<JobRecord, JobsError> {
+    let path = svc.upload_path();
+    std::fs::write(&path, b"solid x\nendsolid x\n").unwrap();
+    svc.submit(NewJob {
+        upload_path: path,
+        input_name: "x.stl".into(),
+        input_bytes: 19,
+        format: Some("stl".into()),
+        params: serde_json::json!({}),
+    })
+    .await
+}
+
+async fn wait_for(svc: &JobService, id: JobId, pred: impl Fn(&JobRecord) -> bool) -> JobRecord {
+    let start = Instant::now();
+    loop {
+        let rec = svc.get(id).await.unwrap();
+        if pred(&rec) {
+            return rec;
+        }
+        assert!(start.elapsed() < Duration::from_secs(10), "timed out; job is {rec:?}");
+        tokio::time::sleep(Duration::from_millis(10)).await;
+    }
+}
+
+/// Waits (polling the cancel flag) up to 30 s; returns Cancelled when asked.
+fn wait_for_cancel(p: &Progress) -> Result<JobOutcome, ExecError> {
+    let start = Instant::now();
+    while start.elapsed() < Duration::from_secs(30) {
+        p.check().map_err(|_| ExecError::Cancelled)?;
+        std::thread::sleep(Duration::from_millis(5));
+    }
+    Err(ExecError::Failed(JobError::new("test", "never cancelled")))
+}
+
+#[tokio::test]
+async fn a_job_runs_writes_artifacts_and_reports_timings() {
+    let dir = tempfile::tempdir().unwrap();
+    let exec = |job: &JobInput, p: &Progress| -> Result<JobOutcome, ExecError> {
+        let input = std::fs::read(&job.input).map_err(|e| ExecError::Failed(JobError::new("io", e.to_string())))?;
+        p.stage("copy", 0.0, 1.0).set(1.0);
+        std::fs::write(job.out_dir.join("copy.stl"), &input).unwrap();
+        Ok(JobOutcome {
+            summary: serde_json::json!({"bytes": input.len()}),
+            stage_seconds: [("copy".to_string(), 0.001)].into(),
+            artifacts: vec![],
+        })
+    };
+    let svc = JobService::start(config(dir.path()), Arc::new(exec)).unwrap();
+    let rec = submit(&svc).await.unwrap();
+    assert_eq!(rec.state, JobState::Queued);
+    let done = wait_for(&svc, rec.id, |r| r.state.is_final()).await;
+    assert_eq!(done.state, JobState::Succeeded, "{done:?}");
+    assert_eq!(done.summary, Some(serde_json::json!({"bytes": 19})));
+    assert_eq!(done.stage_seconds.get("copy"), Some(&0.001));
+    assert_eq!(done.attempts, 1);
+    assert_eq!(done.progress, 1.0);
+    assert_eq!(done.artifacts, vec![Artifact { name: "copy.stl".into(), bytes: 19, media_type: "model/stl".into() }]);
+    let (path, _) = svc.artifact(rec.id, "copy.stl".into()).await.unwrap();
+    assert_eq!(std::fs::read(path).unwrap(), b"solid x\nendsolid x\n");
+    assert!(matches!(svc.artifact(rec.id, "../input".into()).await, Err(JobsError::ArtifactNotFound { .. })));
+    let metrics = svc.metrics_text().await.unwrap();
+    assert!(metrics.contains("meshatlas_jobs{state=\"succeeded\"} 1"), "{metrics}");
+    assert!(metrics.contains("meshatlas_stage_duration_seconds_count{stage=\"copy\"} 1"), "{metrics}");
+}
+
+#[tokio::test]
+async fn failures_and_panics_fail_only_their_job() {
+    let dir = tempfile::tempdir().unwrap();
+    let n = Arc::new(AtomicUsize::new(0));
+    let n2 = n.clone();
+    let exec = move |_: &JobInput, _: &Progress| -> Result<JobOutcome, ExecError> {
+        match n2.fetch_add(1, Ordering::SeqCst) {
+            0 => Err(ExecError::Failed(JobError::new("parse-error", "line 3: expected `vertex`"))),
+            1 => panic!("boom in a job"),
+            _ => Ok(JobOutcome::default()),
+        }
+    };
+    let svc = JobService::start(config(dir.path()), Arc::new(exec)).unwrap();
+    let a = submit(&svc).await.unwrap();
+    let b = submit(&svc).await.unwrap();
+    let c = submit(&svc).await.unwrap();
+    let a = wait_for(&svc, a.id, |r| r.state.is_final()).await;
+    let b = wait_for(&svc, b.id, |r| r.state.is_final()).await;
+    let c = wait_for(&svc, c.id, |r| r.state.is_final()).await;
+    assert_eq!(a.state, JobState::Failed);
+    assert_eq!(a.error, Some(JobError::new("parse-error", "line 3: expected `vertex`")));
+    assert_eq!(b.state, JobState::Failed);
+    assert_eq!(b.error.as_ref().unwrap().kind, "internal-error");
+    assert!(!b.error.unwrap().detail.contains("boom"), "panic text must not reach clients");
+    assert_eq!(c.state, JobState::Succeeded);
+    assert!(svc.metrics_text().await.unwrap().contains("meshatlas_job_panics_total 1"));
+}
+
+#[tokio::test]
+async fn cancel_stops_a_running_job_within_a_second_and_progress_is_visible() {
+    let dir = tempfile::tempdir().unwrap();
+    let exec = |_: &JobInput, p: &Progress| {
+        p.stage("spin", 0.2, 0.8).set(0.5);
+        wait_for_cancel(p)
+    };
+    let svc = JobService::start(config(dir.path()), Arc::new(exec)).unwrap();
+    let rec = submit(&svc).await.unwrap();
+    let running = wait_for(&svc, rec.id, |r| r.state == JobState::Running && r.progress > 0.25).await;
+    assert_eq!(running.stage.as_deref(), Some("spin"));
+    assert!((running.progress - 0.5).abs() < 1e-12, "{}", running.progress);
+    assert!(running.stage_seconds.contains_key("spin"));
+    let t = Instant::now();
+    let after = svc.cancel(rec.id).await.unwrap();
+    assert!(t.elapsed() < Duration::from_secs(1), "cancel took {:?}", t.elapsed());
+    assert_eq!(after.state, JobState::Cancelled);
+    // A queued job is cancelled without running; unknown ids are reported.
+    assert!(matches!(svc.cancel(JobId::random()).await, Err(JobsError::NotFound(_))));
+}
+
+#[tokio::test]
+async fn delete_removes_a_running_job_and_its_files() {
+    let dir = tempfile::tempdir().unwrap();
+    let exec = |_: &JobInput, p: &Progress| wait_for_cancel(p);
+    let svc = JobService::start(config(dir.path()), Arc::new(exec)).unwrap();
+    let a = submit(&svc).await.unwrap();
+    let b = submit(&svc).await.unwrap();
+    wait_for(&svc, a.id, |r| r.state == JobState::Running).await;
+    assert!(svc.config().job_dir(a.id).exists());
+    let t = Instant::now();
+    svc.delete(a.id).await.unwrap();
+    assert!(t.elapsed() < Duration::from_secs(1));
+    assert!(matches!(svc.get(a.id).await, Err(JobsError::NotFound(_))));
+    assert!(!svc.config().job_dir(a.id).exists());
+    // b was queued behind a and now runs; delete it too.
+    wait_for(&svc, b.id, |r| r.state == JobState::Running).await;
+    svc.delete(b.id).await.unwrap();
+    assert!(matches!(svc.delete(b.id).await, Err(JobsError::NotFound(_))));
+    assert!(svc.list(10, None).await.unwrap().jobs.is_empty());
+}
+
+#[tokio::test]
+async fn the_time_limit_fails_a_job_with_a_clear_reason() {
+    let dir = tempfile::tempdir().unwrap();
+    let exec = |_: &JobInput, p: &Progress| wait_for_cancel(p);
+    let cfg = JobsConfig { job_timeout: Duration::from_millis(200), ..config(dir.path()) };
+    let svc = JobService::start(cfg, Arc::new(exec)).unwrap();
+    let rec = submit(&svc).await.unwrap();
+    let done = wait_for(&svc, rec.id, |r| r.state.is_final()).await;
+    assert_eq!(done.state, JobState::Failed);
+    let e = done.error.unwrap();
+    assert_eq!(e.kind, "time-limit-exceeded");
+    assert!(e.detail.contains("0.2 s"), "{}", e.detail);
+}
+
+#[tokio::test]
+async fn the_queue_is_bounded_and_workers_bound_concurrency() {
+    let dir = tempfile::tempdir().unwrap();
+    let now = Arc::new(AtomicUsize::new(0));
+    let peak = Arc::new(AtomicUsize::new(0));
+    let (n2, p2) = (now.clone(), peak.clone());
+    let exec = move |_: &JobInput, _: &Progress| {
+        let k = n2.fetch_add(1, Ordering::SeqCst) + 1;
+        p2.fetch_max(k, Ordering::SeqCst);
+        std::thread::sleep(Duration::from_millis(30));
+        n2.fetch_sub(1, Ordering::SeqCst);
+        Ok(JobOutcome::default())
+    };
+    let cfg = JobsConfig { workers: 2, max_queued: 8, ..config(dir.path()) };
+    let svc = JobService::start(cfg, Arc::new(exec)).unwrap();
+    let mut ids = Vec::new();
+    let mut refused = 0;
+    for _ in 0..20 {
+        match submit(&svc).await {
+            Ok(r) => ids.push(r.id),
+            Err(JobsError::QueueFull { max_queued: 8 }) => refused += 1,
+            Err(e) => panic!("{e}"),
+        }
+    }
+    assert!(refused > 0, "20 instant submissions must overflow a queue of 8");
+    for id in &ids {
+        assert_eq!(wait_for(&svc, *id, |r| r.state.is_final()).await.state, JobState::Succeeded);
+    }
+    assert!(peak.load(Ordering::SeqCst) <= 2, "peak concurrency {}", peak.load(Ordering::SeqCst));
+    let leftovers = std::fs::read_dir(dir.path().join("tmp")).unwrap().count();
+    assert_eq!(leftovers, 0, "refused uploads must be removed");
+}
+
+#[tokio::test]
+async fn a_restart_requeues_the_interrupted_job() {
+    let dir = tempfile::tempdir().unwrap();
+    // Simulate a crash: mark a job running in the store, as a killed worker would leave it.
+    let id = {
+        let store = Store::open(&dir.path().join("meshatlas.sqlite3")).unwrap();
+        let id = JobId::random();
+        let cfg = config(dir.path());
+        std::fs::create_dir_all(cfg.input_path(id, "x.stl").parent().unwrap()).unwrap();
+        std::fs::write(cfg.input_path(id, "x.stl"), b"x").unwrap();
+        store.insert_queued(id, "x.stl", 1, None, &serde_json::json!({}), 10).unwrap();
+        store.claim_next().unwrap();
+        std::fs::create_dir_all(dir.path().join("jobs/not-a-job")).unwrap();
+        id
+    };
+    let exec = |_: &JobInput, _: &Progress| Ok(JobOutcome::default());
+    let svc = JobService::start(config(dir.path()), Arc::new(exec)).unwrap();
+    let done = wait_for(&svc, id, |r| r.state.is_final()).await;
+    assert_eq!((done.state, done.attempts), (JobState::Succeeded, 2));
+    assert!(!dir.path().join("jobs/not-a-job").exists(), "orphaned directories are removed");
+}
+
+#[tokio::test]
+async fn shutdown_puts_the_running_job_back_without_counting_the_attempt() {
+    let dir = tempfile::tempdir().unwrap();
+    let exec = |_: &JobInput, p: &Progress| wait_for_cancel(p);
+    let svc = JobService::start(config(dir.path()), Arc::new(exec)).unwrap();
+    let rec = submit(&svc).await.unwrap();
+    wait_for(&svc, rec.id, |r| r.state == JobState::Running).await;
+    svc.shutdown(Duration::from_secs(5)).await;
+    drop(svc);
+    let quick = |_: &JobInput, _: &Progress| Ok(JobOutcome::default());
+    let svc = JobService::start(config(dir.path()), Arc::new(quick)).unwrap();
+    let done = wait_for(&svc, rec.id, |r| r.state.is_final()).await;
+    assert_eq!((done.state, done.attempts), (JobState::Succeeded, 1));
+}

@@ -1,0 +1,216 @@
+//! Pipeline parameters: which stages to run and each stage's options.
+//!
+//! Parameters arrive as JSON (an HTTP `params` part or query parameter, or
+//! the CLI's `--params FILE.json`). Unknown fields are rejected everywhere,
+//! and the error names the offending field with its path (`load.wobble`),
+//! so a typo never silently falls back to a default.
+
+use serde::{Deserialize, Serialize};
+
+use crate::atlas::{AtlasError, AtlasOptions};
+use crate::crossfield::{CrossfieldError, CrossfieldOptions, validate_options};
+use crate::io::{IoError, LoadOptions};
+
+/// Parameters of one pipeline run.
+///
+/// Adding a stage adds one [`StageName`] variant and one options field here.
+#[derive(Debug, Clone, Default, Serialize, Deserialize)]
+#[serde(deny_unknown_fields, default)]
+pub struct PipelineParams {
+    /// Stages to run after load and repair, in pipeline order whatever the
+    /// order given. Default: none (load, repair and write the mesh only).
+    pub stages: Vec<StageName>,
+    /// Reading and repair: weld tolerance (relative to the bounding-box
+    /// diagonal, default 1e-6) and triangle cap (default 5e6).
+    pub load: LoadOptions,
+    /// Options of the atlas stage (also the feature angle used by the
+    /// crossfield's alignment constraints).
+    pub atlas: AtlasOptions,
+    /// Options of the crossfield stage.
+    pub crossfield: CrossfieldOptions,
+}
+
+/// A computation stage that can follow load and repair.
+///
+/// Stages not built into this binary are rejected with a clear error
+/// ([`StageName::PLANNED`] lists the names the API reserves).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, PartialOrd, Ord, Hash)]
+pub enum StageName {
+    /// Feature curves, disk-like patches, mean value maps (thesis ch. 2).
+    Atlas,
+    /// Ginzburg–Landau crossfield and its singularities (thesis ch. 3).
+    Crossfield,
+}
+
+impl StageName {
+    /// Stages this build can run, in pipeline order.
+    pub const ALL: &'static [StageName] = &[StageName::Atlas, StageName::Crossfield];
+
+    /// Stage names of the API, in pipeline order (some may not be built yet).
+    pub const PLANNED: &'static [&'static str] = &["atlas", "crossfield", "frames"];
+
+    /// The lowercase name used in JSON, reports and progress.
+    pub fn as_str(self) -> &'static str {
+        match self {
+            StageName::Atlas => "atlas",
+            StageName::Crossfield => "crossfield",
+        }
+    }
+
+    /// The stage called `name`.
+    ///
+    /// # Errors
+    /// A message saying whether the name is unknown or not built yet.
+    pub fn parse(name: &str) -> Result<Self, String> {
+        if let Some(s) = Self::ALL.iter().find(|s| s.as_str() == name) {
+            return Ok(*s);
+        }
+        let available = if Self::ALL.is_empty() {
+            "none".to_string()
+        } else {
+            Self::ALL.iter().map(|s| s.as_str()).collect::<Vec<_>>().join(", ")
+        };
+        if Self::PLANNED.contains(&name) {
+            Err(format!("stage `{name}` is not available in this build (available stages: {available})"))
+        } else {
+            Err(format!("unknown stage `{name}` (available stages: {available})"))
+        }
+    }
+}
+
+impl Serialize for StageName {
+    fn serialize<S: serde::Serializer>(&self, s: S) -> Result<S::Ok, S::Error> {
+        s.serialize_str(self.as_str())
+    }
+}
+
+impl<'de> Deserialize<'de> for StageName {
+    fn deserialize<D: serde::Deserializer<'de>>(d: D) -> Result<Self, D::Error> {
+        let name = String::deserialize(d)?;
+        StageName::parse(&name).map_err(serde::de::Error::custom)
+    }
+}
+
+/// Parameters that do not deserialize.
+#[derive(Debug, Clone, PartialEq, Eq, thiserror::Error)]
+#[error("{message}")]
+pub struct ParamsError {
+    /// Path of the offending field (`stages[0]`, `load.wobble`), when known.
+    pub field: Option<String>,
+    /// What is wrong, as serde reports it.
+    pub message: String,
+    /// True when the text is not JSON at all (as opposed to JSON that does
+    /// not fit the schema).
+    pub syntax: bool,
+}
+
+/// Extracts the name from serde's "unknown field `x`, expected …" message.
+fn unknown_field_name(message: &str) -> Option<&str> {
+    let rest = message.strip_prefix("unknown field `")?;
+    rest.split('`').next()
+}
+
+/// Parses pipeline parameters from JSON, naming the offending field on error.
+///
+/// # Errors
+/// [`ParamsError`] for malformed JSON, unknown fields, wrong types or
+/// unknown stages.
+pub fn parse_params(json: &[u8]) -> Result<PipelineParams, ParamsError> {
+    let mut de = serde_json::Deserializer::from_slice(json);
+    let parsed: Result<PipelineParams, _> = serde_path_to_error::deserialize(&mut de);
+    let params = parsed.map_err(|e| {
+        let path = e.path().to_string();
+        let inner = e.into_inner();
+        let syntax = inner.is_syntax() || inner.is_eof();
+        // serde's own message, without the " at line L column C" suffix.
+        let full = inner.to_string();
+        let message = match full.rfind(" at line ") {
+            Some(k) if inner.line() > 0 => full[..k].to_string(),
+            _ => full,
+        };
+        let field = match unknown_field_name(&message) {
+            Some(name) if path == "." || path.is_empty() => Some(name.to_string()),
+            Some(name) if !path.ends_with(name) => Some(format!("{path}.{name}")),
+            _ if path == "." || path.is_empty() || syntax => None,
+            _ => Some(path),
+        };
+        ParamsError { field, message, syntax }
+    })?;
+    de.end().map_err(|e| ParamsError { field: None, message: e.to_string(), syntax: true })?;
+    params.load.validate().map_err(|e| match e {
+        IoError::InvalidOptions { option, reason } => {
+            ParamsError { field: Some(format!("load.{option}")), message: reason, syntax: false }
+        }
+        other => ParamsError { field: Some("load".into()), message: other.to_string(), syntax: false },
+    })?;
+    params.atlas.validate().map_err(|e| match e {
+        AtlasError::InvalidOption { name, reason } => {
+            ParamsError { field: Some(format!("atlas.{name}")), message: reason, syntax: false }
+        }
+        other => ParamsError { field: Some("atlas".into()), message: other.to_string(), syntax: false },
+    })?;
+    validate_options(&params.crossfield).map_err(|e| match e {
+        CrossfieldError::InvalidOption { name, reason } => {
+            ParamsError { field: Some(format!("crossfield.{name}")), message: reason, syntax: false }
+        }
+        other => ParamsError { field: Some("crossfield".into()), message: other.to_string(), syntax: false },
+    })?;
+    Ok(params)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn empty_object_gives_defaults() {
+        let json = |p: PipelineParams| serde_json::to_value(p).unwrap();
+        assert_eq!(json(parse_params(b"{}").unwrap()), json(PipelineParams::default()));
+        assert_eq!(json(parse_params(b" {\"stages\": []} ").unwrap()), json(PipelineParams::default()));
+        let p = parse_params(br#"{"load": {"max_triangles": 7}}"#).unwrap();
+        assert_eq!((p.load.max_triangles, p.load.weld_tolerance), (7, 1e-6));
+    }
+
+    #[test]
+    fn nested_unknown_fields_and_bad_ranges_are_named() {
+        let e = parse_params(br#"{"load": {"wobble": 1}}"#).unwrap_err();
+        assert_eq!(e.field.as_deref(), Some("load.wobble"), "{e:?}");
+        let e = parse_params(br#"{"load": {"weld_tolerance": 0.5}}"#).unwrap_err();
+        assert_eq!(e.field.as_deref(), Some("load.weld_tolerance"), "{e:?}");
+        assert!(!e.syntax);
+        let e = parse_params(br#"{"load": {"max_triangles": -3}}"#).unwrap_err();
+        assert_eq!(e.field.as_deref(), Some("load.max_triangles"), "{e:?}");
+    }
+
+    #[test]
+    fn unknown_fields_are_named() {
+        let e = parse_params(br#"{"stages": [], "wobble": 1}"#).unwrap_err();
+        assert_eq!(e.field.as_deref(), Some("wobble"), "{e:?}");
+        assert!(e.message.contains("unknown field `wobble`"), "{e:?}");
+        assert!(!e.syntax);
+    }
+
+    #[test]
+    fn stages_not_in_this_build_and_unknown_stages_are_explained() {
+        let e = parse_params(br#"{"stages": ["frames"]}"#).unwrap_err();
+        assert_eq!(e.field.as_deref(), Some("stages[0]"), "{e:?}");
+        let e2 = parse_params(br#"{"stages": ["bogus"]}"#).unwrap_err();
+        assert!(e2.message.contains("unknown stage `bogus`"), "{e2:?}");
+        for name in StageName::PLANNED {
+            match StageName::parse(name) {
+                Ok(s) => assert_eq!(s.as_str(), *name),
+                Err(m) => assert!(m.contains("not available in this build"), "{m}"),
+            }
+        }
+    }
+
+    #[test]
+    fn malformed_json_is_a_syntax_error() {
+        let e = parse_params(b"{\"stages\": [").unwrap_err();
+        assert!(e.syntax && e.field.is_none(), "{e:?}");
+        let e = parse_params(b"{} trailing").unwrap_err();
+        assert!(e.syntax, "{e:?}");
+        let e = parse_params(br#"{"stages": 3}"#).unwrap_err();
+        assert!(!e.syntax && e.field.as_deref() == Some("stages"), "{e:?}");
+    }
+}

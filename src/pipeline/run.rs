@@ -1,0 +1,222 @@
+//! [`run_pipeline`]: load → repair → selected stages → write artifacts and
+//! `report.json`, timing every step and reporting progress.
+//!
+//! Progress ranges of the overall fraction: load `[0, 0.1]`, repair
+//! `[0.1, 0.2]` (the readers' welding and repair), the
+//! selected stages share `[0.2, 0.9]` equally, writing `[0.9, 1]`. The
+//! pipeline calls `progress.check()` between steps, so a cancel stops it at
+//! the next boundary at the latest (stages check more often inside).
+//!
+//! Adding a stage: a [`StageName`] variant, an options field in
+//! [`PipelineParams`], an output field in [`Products`] if later stages need
+//! it, and one arm in [`run_stage`] calling the stage's function, which
+//! writes its artifact files into `out_dir` and returns a JSON summary.
+
+use std::collections::BTreeMap;
+use std::fs::File;
+use std::io::Write;
+use std::path::{Path, PathBuf};
+use std::time::Instant;
+
+use crate::io::load::{finish, read_raw};
+use crate::io::msh41::write::write_surface_msh41;
+use crate::io::vtu::write_surface_vtu;
+use crate::io::{Format, IoError, LoadOptions, LoadedMesh, RawMesh, WriteError};
+use crate::mesh::{TetMesh, TriMesh};
+use crate::progress::Progress;
+
+use super::error::PipelineError;
+use super::media_type_for;
+use super::params::{PipelineParams, StageName};
+use super::report::{ArtifactInfo, InputInfo, PipelineReport, StepTiming};
+
+/// Name of the report artifact.
+pub const REPORT_NAME: &str = "report.json";
+
+/// What one stage hands back: a JSON summary (numbers a user wants to see:
+/// patch counts, χ, singularities, energies) and the names of the files it
+/// wrote into `out_dir`.
+#[derive(Debug, Clone, Default)]
+pub struct StageOutput {
+    /// Summary shown in the job resource and `report.json`.
+    pub summary: serde_json::Value,
+    /// Files written into the output directory.
+    pub artifacts: Vec<String>,
+}
+
+/// Data a stage reads: the repaired input and the products of earlier
+/// stages. Each stage that feeds a later one adds an `Option` field here.
+#[derive(Debug)]
+pub struct Products {
+    /// The repaired surface.
+    pub surface: TriMesh,
+    /// The volume mesh, when the input carried one (tetrahedral MSH).
+    pub volume: Option<TetMesh>,
+    /// Feature edges of the surface, once a stage has detected them.
+    pub features: Option<crate::atlas::features::Features>,
+}
+
+/// Runs one stage.
+fn run_stage(
+    stage: StageName,
+    params: &PipelineParams,
+    products: &mut Products,
+    out_dir: &Path,
+    progress: &Progress,
+) -> Result<StageOutput, PipelineError> {
+    match stage {
+        StageName::Atlas => super::stages::run_atlas(params, products, out_dir, progress),
+        StageName::Crossfield => super::stages::run_crossfield(params, products, out_dir, progress),
+    }
+}
+
+/// Reads `input` without repairing it: the format from `format`, else the
+/// file extension, else the content (as [`crate::io::load_path`] does).
+fn read_input(input: &Path, format: Option<Format>, opts: &LoadOptions) -> Result<(RawMesh, Format), IoError> {
+    use std::io::BufRead;
+    opts.validate()?;
+    let file = File::open(input)?;
+    let len = file.metadata()?.len();
+    if len == 0 {
+        return Err(IoError::EmptyFile);
+    }
+    let mut reader = std::io::BufReader::with_capacity(1 << 20, file);
+    let ext = input.extension().and_then(|e| e.to_str());
+    let format = match format.or_else(|| ext.and_then(Format::from_extension)) {
+        Some(f) => f,
+        None => Format::sniff(reader.fill_buf()?, Some(len)).ok_or_else(|| IoError::UnknownFormat {
+            reason: "the content is not recognised as STL, OBJ, PLY or MSH".to_string(),
+        })?,
+    };
+    Ok((read_raw(reader, format, Some(len), &opts.limits())?, format))
+}
+
+/// Times `f` and records it as step `name`.
+fn timed<T>(timings: &mut Vec<StepTiming>, name: &str, f: impl FnOnce() -> T) -> T {
+    let start = Instant::now();
+    let out = f();
+    timings.push(StepTiming { step: name.to_string(), seconds: start.elapsed().as_secs_f64() });
+    out
+}
+
+/// Writes `out_dir/name` with `f` (the writers buffer internally), syncs it
+/// and returns its size.
+fn write_file(
+    out_dir: &Path,
+    name: &str,
+    f: impl FnOnce(&mut File) -> Result<(), WriteError>,
+) -> Result<ArtifactInfo, PipelineError> {
+    let path = out_dir.join(name);
+    let err = |source: WriteError| PipelineError::Write { path: path.clone(), source };
+    let mut file = File::create(&path).map_err(|e| err(e.into()))?;
+    f(&mut file).map_err(err)?;
+    file.sync_all().map_err(|e| err(e.into()))?;
+    let bytes = std::fs::metadata(&path).map_err(|e| err(e.into()))?.len();
+    Ok(ArtifactInfo { name: name.to_string(), bytes, media_type: media_type_for(name).to_string() })
+}
+
+/// Size and media type of a file a stage wrote.
+fn artifact_info(out_dir: &Path, name: &str) -> Result<ArtifactInfo, PipelineError> {
+    let path: PathBuf = out_dir.join(name);
+    let bytes =
+        std::fs::metadata(&path).map_err(|e| PipelineError::Write { path: path.clone(), source: e.into() })?.len();
+    Ok(ArtifactInfo { name: name.to_string(), bytes, media_type: media_type_for(name).to_string() })
+}
+
+/// Runs the pipeline on `input` and writes `mesh.msh` (MSH 4.1), `mesh.vtu`,
+/// the stages' artifacts and `report.json` into `out_dir` (created if
+/// missing).
+///
+/// `format` overrides detection from the file name and content.
+///
+/// # Errors
+/// [`PipelineError::Load`] when the input cannot be read (its `kind()` is
+/// the reader's: `parse-error`, `too-many-triangles`, …),
+/// [`PipelineError::Cancelled`] when `progress` is cancelled,
+/// [`PipelineError::Stage`] when a stage fails, [`PipelineError::Write`]
+/// when an artifact cannot be written.
+pub fn run_pipeline(
+    input: &Path,
+    format: Option<Format>,
+    params: &PipelineParams,
+    out_dir: &Path,
+    progress: &Progress,
+) -> Result<PipelineReport, PipelineError> {
+    let start = Instant::now();
+    let mut timings = Vec::new();
+    std::fs::create_dir_all(out_dir)
+        .map_err(|e| PipelineError::Write { path: out_dir.to_path_buf(), source: e.into() })?;
+    progress.check()?;
+
+    let _span = tracing::info_span!("pipeline", input = %input.display()).entered();
+    let load_progress = progress.stage("load", 0.0, 0.1);
+    let (raw, format) = timed(&mut timings, "load", || read_input(input, format, &params.load))?;
+    load_progress.set(1.0);
+    progress.check()?;
+    let repair_progress = progress.stage("repair", 0.1, 0.2);
+    let loaded: LoadedMesh = timed(&mut timings, "repair", || finish(raw, format, &params.load))?;
+    repair_progress.set(1.0);
+    tracing::info!(
+        n_triangles = loaded.surface.n_faces(),
+        n_vertices = loaded.surface.n_vertices(),
+        "input loaded and repaired"
+    );
+    let input_info = InputInfo {
+        name: input.file_name().map(|n| n.to_string_lossy().into_owned()).unwrap_or_default(),
+        format: loaded.format.extension(),
+        bytes: std::fs::metadata(input).map(|m| m.len()).unwrap_or(0),
+        n_vertices: loaded.surface.n_vertices(),
+        n_triangles: loaded.surface.n_faces(),
+        n_tets: loaded.volume.as_ref().map(|v| v.tets.len()),
+    };
+    let repair = loaded.repair;
+    let mut products = Products { surface: loaded.surface, volume: loaded.volume, features: None };
+
+    let mut stages: Vec<StageName> = params.stages.clone();
+    stages.sort();
+    stages.dedup();
+    let mut summaries = BTreeMap::new();
+    let mut artifacts = Vec::new();
+    let share = 0.7 / stages.len().max(1) as f64;
+    for (i, &stage) in stages.iter().enumerate() {
+        progress.check()?;
+        let name = stage.as_str();
+        let lo = 0.2 + share * i as f64;
+        let p = progress.stage(name, lo, lo + share);
+        let _stage_span = tracing::info_span!("stage", name).entered();
+        let out = timed(&mut timings, name, || run_stage(stage, params, &mut products, out_dir, &p))?;
+        p.set(1.0);
+        for file in &out.artifacts {
+            artifacts.push(artifact_info(out_dir, file)?);
+        }
+        summaries.insert(name.to_string(), out.summary);
+    }
+
+    progress.check()?;
+    let wp = progress.stage("write", 0.9, 1.0);
+    let surface = &products.surface;
+    let written = timed(&mut timings, "write", || -> Result<Vec<ArtifactInfo>, PipelineError> {
+        let msh = write_file(out_dir, "mesh.msh", |w| write_surface_msh41(w, surface))?;
+        wp.set(0.5);
+        let vtu = write_file(out_dir, "mesh.vtu", |w| write_surface_vtu(w, surface))?;
+        Ok(vec![msh, vtu])
+    })?;
+    let mut all = written;
+    all.extend(artifacts);
+    let report = PipelineReport {
+        version: env!("CARGO_PKG_VERSION"),
+        input: input_info,
+        repair,
+        stages: summaries,
+        timings,
+        artifacts: all,
+        total_seconds: start.elapsed().as_secs_f64(),
+    };
+    write_file(out_dir, REPORT_NAME, |w| {
+        let mut text = serde_json::to_vec_pretty(&report).map_err(std::io::Error::other)?;
+        text.push(b'\n');
+        Ok(w.write_all(&text)?)
+    })?;
+    wp.set(1.0);
+    Ok(report)
+}

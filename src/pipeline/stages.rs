@@ -1,0 +1,95 @@
+//! The stage arms of the pipeline: each runs one stage on the products of
+//! the earlier steps, writes its artifacts into the output directory and
+//! returns a JSON summary. Stages never reach into each other's internals:
+//! they share only the repaired surface, the optional volume and the feature
+//! edges (computed once, by whichever stage needs them first).
+
+use std::fs::File;
+use std::io::BufWriter;
+use std::path::Path;
+
+use crate::atlas::features::{Features, detect_features};
+use crate::atlas::{AtlasError, build_atlas, write_atlas_msh, write_atlas_uv_vtu, write_atlas_vtu};
+use crate::crossfield::{
+    CrossfieldError, compute_crossfield, write_crossfield_msh, write_crossfield_vtu, write_singularities_json,
+};
+use crate::io::WriteError;
+use crate::mesh::{Topology, TriMesh};
+use crate::progress::Progress;
+
+use super::error::PipelineError;
+use super::params::PipelineParams;
+use super::run::{Products, StageOutput};
+
+/// Write `out_dir/name` with `f` through a buffer and flush it.
+fn write_artifact(
+    out_dir: &Path,
+    name: &str,
+    f: impl FnOnce(&mut BufWriter<File>) -> Result<(), WriteError>,
+) -> Result<String, PipelineError> {
+    let path = out_dir.join(name);
+    let err = |source: WriteError| PipelineError::Write { path: path.clone(), source };
+    let mut w = BufWriter::new(File::create(&path).map_err(|e| err(e.into()))?);
+    f(&mut w).map_err(err)?;
+    let file = w.into_inner().map_err(|e| err(e.into_error().into()))?;
+    file.sync_all().map_err(|e| err(e.into()))?;
+    Ok(name.to_string())
+}
+
+/// Feature edges of the surface (computed once per job).
+fn features<'a>(products: &'a mut Products, topo: &Topology, feature_angle_deg: f64) -> &'a Features {
+    products.features.get_or_insert_with(|| detect_features(&products.surface, topo, feature_angle_deg))
+}
+
+/// Stage 1: the atlas; artifacts `atlas.msh`, `atlas.vtu`, `atlas_uv.vtu`.
+pub fn run_atlas(
+    params: &PipelineParams,
+    products: &mut Products,
+    out_dir: &Path,
+    progress: &Progress,
+) -> Result<StageOutput, PipelineError> {
+    let atlas = build_atlas(&products.surface, &params.atlas, progress).map_err(|e| match e {
+        AtlasError::Cancelled => PipelineError::Cancelled,
+        AtlasError::NoValidMap { .. } => PipelineError::stage("atlas", "no-valid-map", e.to_string()),
+        other => PipelineError::stage("atlas", "stage-failed", other.to_string()),
+    })?;
+    progress.check()?;
+    let artifacts = vec![
+        write_artifact(out_dir, "atlas.msh", |w| write_atlas_msh(&atlas, w))?,
+        write_artifact(out_dir, "atlas.vtu", |w| write_atlas_vtu(&atlas, w))?,
+        write_artifact(out_dir, "atlas_uv.vtu", |w| write_atlas_uv_vtu(&atlas, w))?,
+    ];
+    let summary = serde_json::to_value(&atlas.report).map_err(|e| PipelineError::stage("atlas", "stage-failed", e.to_string()))?;
+    products.features = Some(atlas.features);
+    Ok(StageOutput { summary, artifacts })
+}
+
+/// Stage 2: the crossfield, aligned with boundary and feature edges
+/// (those of the atlas when it ran, with the same angle threshold);
+/// artifacts `crossfield.vtu`, `singularities.json`, `crossfield.msh`.
+pub fn run_crossfield(
+    params: &PipelineParams,
+    products: &mut Products,
+    out_dir: &Path,
+    progress: &Progress,
+) -> Result<StageOutput, PipelineError> {
+    let topo = Topology::new(&products.surface);
+    let aligned = features(products, &topo, params.atlas.feature_angle_deg).is_feature_edge.clone();
+    let surface: &TriMesh = &products.surface;
+    let field = compute_crossfield(surface, &topo, &aligned, &params.crossfield, progress).map_err(|e| match e {
+        CrossfieldError::Cancelled(_) => PipelineError::Cancelled,
+        CrossfieldError::InconsistentOrientation { .. } => {
+            PipelineError::stage("crossfield", "non-orientable-surface", e.to_string())
+        }
+        other => PipelineError::stage("crossfield", "stage-failed", other.to_string()),
+    })?;
+    progress.check()?;
+    let artifacts = vec![
+        write_artifact(out_dir, "crossfield.vtu", |w| write_crossfield_vtu(&field, surface, w))?,
+        write_artifact(out_dir, "singularities.json", |w| Ok(write_singularities_json(&field, w)?))?,
+        write_artifact(out_dir, "crossfield.msh", |w| write_crossfield_msh(&field, surface, w))?,
+    ];
+    let summary =
+        serde_json::to_value(&field.report).map_err(|e| PipelineError::stage("crossfield", "stage-failed", e.to_string()))?;
+    Ok(StageOutput { summary, artifacts })
+}

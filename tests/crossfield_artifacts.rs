@@ -1,0 +1,92 @@
+//! The crossfield artifacts (`crossfield.vtu`, `crossfield.msh`,
+//! `singularities.json`) read back by meshio and Gmsh (python3 subprocess).
+
+mod common;
+
+use meshatlas::crossfield::{
+    CrossfieldOptions, compute_crossfield, write_crossfield_msh, write_crossfield_vtu,
+    write_singularities_json,
+};
+use meshatlas::mesh::{EdgeId, Topology, fixtures};
+use meshatlas::progress::Progress;
+use std::fs::File;
+
+#[test]
+fn artifacts_open_in_meshio_and_gmsh() {
+    let mesh = fixtures::disk(8);
+    let topo = Topology::new(&mesh);
+    let aligned: Vec<bool> = (0..topo.n_edges())
+        .map(|e| topo.is_boundary_edge(EdgeId::new(e)))
+        .collect();
+    let field = compute_crossfield(
+        &mesh,
+        &topo,
+        &aligned,
+        &CrossfieldOptions::default(),
+        &Progress::none(),
+    )
+    .unwrap();
+    let dir = common::scratch("crossfield_artifacts", "disk");
+    let (vtu, msh, json) = (
+        dir.join("crossfield.vtu"),
+        dir.join("crossfield.msh"),
+        dir.join("singularities.json"),
+    );
+    write_crossfield_vtu(&field, &mesh, File::create(&vtu).unwrap()).unwrap();
+    write_crossfield_msh(&field, &mesh, File::create(&msh).unwrap()).unwrap();
+    write_singularities_json(&field, File::create(&json).unwrap()).unwrap();
+    let script = r#"
+vtu, msh, js = sys.argv[1], sys.argv[2], sys.argv[3]
+m = meshio.read(vtu)
+tri = m.cells_dict['triangle']
+u = np.asarray(m.cell_data['cross_u'][0]); v = np.asarray(m.cell_data['cross_v'][0])
+nrm = np.asarray(m.cell_data['norm'][0]); idx = np.asarray(m.point_data['index'])
+gmsh.initialize(); gmsh.option.setNumber('General.Terminal', 0)
+gmsh.open(msh)
+views = {}
+for t in gmsh.view.getTags():
+    name = gmsh.option.getString(f'View[{gmsh.view.getIndex(t)}].Name')
+    kind, tags, data, time, nc = gmsh.view.getModelData(t, 0)
+    views[name] = [kind, len(tags), nc, [float(x) for x in data[0]]]
+_, etags, _ = gmsh.model.mesh.getElements(2)
+gmsh.finalize()
+s = json.load(open(js))
+print(json.dumps({
+  'n_tri': int(len(tri)), 'n_pts': int(len(m.points)),
+  'u_unit': float(np.abs(np.linalg.norm(u, axis=1) - 1).max()),
+  'uv_dot': float(np.abs((u * v).sum(axis=1)).max()),
+  'norm_max': float(nrm.max()), 'index_sum': float(idx.sum()),
+  'views': views, 'n_gmsh_tri': int(sum(len(e) for e in etags)),
+  'json_sum': s['index_sum'], 'json_n': len(s['singularities'])}))
+"#;
+    let out = common::python(
+        script,
+        &[
+            common::path_str(&vtu),
+            common::path_str(&msh),
+            common::path_str(&json),
+        ],
+    );
+    assert_eq!(out["n_tri"], mesh.n_faces());
+    assert_eq!(out["n_pts"], mesh.n_vertices());
+    assert!(out["u_unit"].as_f64().unwrap() < 1e-12);
+    assert!(out["uv_dot"].as_f64().unwrap() < 1e-12);
+    assert!(out["norm_max"].as_f64().unwrap() <= 1.2);
+    assert!((out["index_sum"].as_f64().unwrap() - 1.0).abs() < 1e-12);
+    assert_eq!(out["n_gmsh_tri"], mesh.n_faces());
+    let u = &out["views"]["cross_u"];
+    assert_eq!(u[0], "ElementData");
+    assert_eq!(u[1], mesh.n_faces());
+    assert_eq!(u[2], 3);
+    let first: Vec<f64> = u[3]
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(|x| x.as_f64().unwrap())
+        .collect();
+    let want = field.cross_per_face[0];
+    assert!((first[0] - want.x).abs() < 1e-12 && (first[1] - want.y).abs() < 1e-12);
+    assert_eq!(out["views"]["norm"][2], 1);
+    assert_eq!(out["json_sum"], 1.0);
+    assert_eq!(out["json_n"], field.singularities.len());
+}
