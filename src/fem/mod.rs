@@ -3,3 +3,4 @@
 //! tetrahedra, their stiffness and mass matrices.
 
 pub mod crouzeix_raviart;
+pub mod tet_p1;
