@@ -93,6 +93,8 @@ const KINDS: &[(&str, StatusCode, &str)] = &[
     ("stage-failed", StatusCode::UNPROCESSABLE_ENTITY, "A pipeline stage failed on this input"),
     ("no-valid-map", StatusCode::UNPROCESSABLE_ENTITY, "A patch has no valid one-to-one parameterization"),
     ("non-orientable-surface", StatusCode::UNPROCESSABLE_ENTITY, "The surface cannot be oriented consistently"),
+    ("open-surface", StatusCode::UNPROCESSABLE_ENTITY, "The surface is not closed, so it encloses no volume"),
+    ("invalid-target-size", StatusCode::UNPROCESSABLE_ENTITY, "The volume target size gives no or too many tetrahedra"),
     ("time-limit-exceeded", StatusCode::UNPROCESSABLE_ENTITY, "Job time limit exceeded"),
     ("interrupted", StatusCode::SERVICE_UNAVAILABLE, "Job interrupted repeatedly"),
     ("internal-error", StatusCode::INTERNAL_SERVER_ERROR, "Internal server error"),

@@ -9,6 +9,7 @@ use serde::{Deserialize, Serialize};
 
 use crate::atlas::{AtlasError, AtlasOptions};
 use crate::crossfield::{CrossfieldError, CrossfieldOptions, validate_options};
+use crate::frames::{FramesError, FramesOptions};
 use crate::io::{IoError, LoadOptions};
 
 /// Parameters of one pipeline run.
@@ -28,32 +29,32 @@ pub struct PipelineParams {
     pub atlas: AtlasOptions,
     /// Options of the crossfield stage.
     pub crossfield: CrossfieldOptions,
+    /// Options of the frames stage.
+    pub frames: FramesOptions,
 }
 
-/// A computation stage that can follow load and repair.
-///
-/// Stages not built into this binary are rejected with a clear error
-/// ([`StageName::PLANNED`] lists the names the API reserves).
+/// A computation stage that can follow load and repair; stages run in this
+/// order whatever order they are requested in.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, PartialOrd, Ord, Hash)]
 pub enum StageName {
     /// Feature curves, disk-like patches, mean value maps (thesis ch. 2).
     Atlas,
     /// Ginzburg–Landau crossfield and its singularities (thesis ch. 3).
     Crossfield,
+    /// Volume mesh and smooth 3D frame field with its singular edges (thesis ch. 4).
+    Frames,
 }
 
 impl StageName {
     /// Stages this build can run, in pipeline order.
-    pub const ALL: &'static [StageName] = &[StageName::Atlas, StageName::Crossfield];
-
-    /// Stage names of the API, in pipeline order (some may not be built yet).
-    pub const PLANNED: &'static [&'static str] = &["atlas", "crossfield", "frames"];
+    pub const ALL: &'static [StageName] = &[StageName::Atlas, StageName::Crossfield, StageName::Frames];
 
     /// The lowercase name used in JSON, reports and progress.
     pub fn as_str(self) -> &'static str {
         match self {
             StageName::Atlas => "atlas",
             StageName::Crossfield => "crossfield",
+            StageName::Frames => "frames",
         }
     }
 
@@ -65,16 +66,8 @@ impl StageName {
         if let Some(s) = Self::ALL.iter().find(|s| s.as_str() == name) {
             return Ok(*s);
         }
-        let available = if Self::ALL.is_empty() {
-            "none".to_string()
-        } else {
-            Self::ALL.iter().map(|s| s.as_str()).collect::<Vec<_>>().join(", ")
-        };
-        if Self::PLANNED.contains(&name) {
-            Err(format!("stage `{name}` is not available in this build (available stages: {available})"))
-        } else {
-            Err(format!("unknown stage `{name}` (available stages: {available})"))
-        }
+        let available = Self::ALL.iter().map(|s| s.as_str()).collect::<Vec<_>>().join(", ");
+        Err(format!("unknown stage `{name}` (available stages: {available})"))
     }
 }
 
@@ -155,6 +148,12 @@ pub fn parse_params(json: &[u8]) -> Result<PipelineParams, ParamsError> {
         }
         other => ParamsError { field: Some("crossfield".into()), message: other.to_string(), syntax: false },
     })?;
+    params.frames.validate().map_err(|e| match e {
+        FramesError::InvalidOption { name, reason } => {
+            ParamsError { field: Some(format!("frames.{name}")), message: reason, syntax: false }
+        }
+        other => ParamsError { field: Some("frames".into()), message: other.to_string(), syntax: false },
+    })?;
     Ok(params)
 }
 
@@ -191,16 +190,14 @@ mod tests {
     }
 
     #[test]
-    fn stages_not_in_this_build_and_unknown_stages_are_explained() {
-        let e = parse_params(br#"{"stages": ["frames"]}"#).unwrap_err();
-        assert_eq!(e.field.as_deref(), Some("stages[0]"), "{e:?}");
-        let e2 = parse_params(br#"{"stages": ["bogus"]}"#).unwrap_err();
-        assert!(e2.message.contains("unknown stage `bogus`"), "{e2:?}");
-        for name in StageName::PLANNED {
-            match StageName::parse(name) {
-                Ok(s) => assert_eq!(s.as_str(), *name),
-                Err(m) => assert!(m.contains("not available in this build"), "{m}"),
-            }
+    fn every_stage_parses_and_unknown_stages_are_explained() {
+        let p = parse_params(br#"{"stages": ["frames", "atlas", "crossfield"]}"#).unwrap();
+        assert_eq!(p.stages, vec![StageName::Frames, StageName::Atlas, StageName::Crossfield]);
+        let e = parse_params(br#"{"stages": ["atlas", "bogus"]}"#).unwrap_err();
+        assert_eq!(e.field.as_deref(), Some("stages[1]"), "{e:?}");
+        assert!(e.message.contains("unknown stage `bogus` (available stages: atlas, crossfield, frames)"), "{e:?}");
+        for s in StageName::ALL {
+            assert_eq!(StageName::parse(s.as_str()), Ok(*s));
         }
     }
 

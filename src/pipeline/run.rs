@@ -67,6 +67,7 @@ fn run_stage(
     match stage {
         StageName::Atlas => super::stages::run_atlas(params, products, out_dir, progress),
         StageName::Crossfield => super::stages::run_crossfield(params, products, out_dir, progress),
+        StageName::Frames => super::stages::run_frames(params, products, out_dir, progress),
     }
 }
 

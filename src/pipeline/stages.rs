@@ -13,6 +13,7 @@ use crate::atlas::{AtlasError, build_atlas, write_atlas_msh, write_atlas_uv_vtu,
 use crate::crossfield::{
     CrossfieldError, compute_crossfield, write_crossfield_msh, write_crossfield_vtu, write_singularities_json,
 };
+use crate::frames::{FramesError, compute_frame_field, write_frames_vtu, write_singular_edges_vtu};
 use crate::io::WriteError;
 use crate::mesh::{Topology, TriMesh};
 use crate::progress::Progress;
@@ -91,5 +92,33 @@ pub fn run_crossfield(
     ];
     let summary =
         serde_json::to_value(&field.report).map_err(|e| PipelineError::stage("crossfield", "stage-failed", e.to_string()))?;
+    Ok(StageOutput { summary, artifacts })
+}
+
+/// Stage 3: the volume (the uploaded tetrahedra, or a mesh of the enclosed
+/// volume) and its frame field; artifacts `frames.vtu`, `frames_singular.vtu`.
+pub fn run_frames(
+    params: &PipelineParams,
+    products: &mut Products,
+    out_dir: &Path,
+    progress: &Progress,
+) -> Result<StageOutput, PipelineError> {
+    let field = compute_frame_field(&products.surface, products.volume.as_ref(), &params.frames, progress).map_err(
+        |e| match e {
+            FramesError::Cancelled(_) => PipelineError::Cancelled,
+            FramesError::OpenSurface { .. } => PipelineError::stage("frames", "open-surface", e.to_string()),
+            FramesError::TooManyTets { .. } | FramesError::NoInterior { .. } => {
+                PipelineError::stage("frames", "invalid-target-size", e.to_string())
+            }
+            other => PipelineError::stage("frames", "stage-failed", other.to_string()),
+        },
+    )?;
+    progress.check()?;
+    let artifacts = vec![
+        write_artifact(out_dir, "frames.vtu", |w| write_frames_vtu(&field, w))?,
+        write_artifact(out_dir, "frames_singular.vtu", |w| write_singular_edges_vtu(&field, w))?,
+    ];
+    let summary =
+        serde_json::to_value(&field.report).map_err(|e| PipelineError::stage("frames", "stage-failed", e.to_string()))?;
     Ok(StageOutput { summary, artifacts })
 }

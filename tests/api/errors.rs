@@ -93,7 +93,7 @@ async fn bad_params_name_the_field() {
     let q = format!("?params={}", urlenc("{not json"));
     let r = s.submit_raw(&q, "application/octet-stream", b"solid x".to_vec()).await;
     expect_problem(r, 400, "invalid-json").await;
-    let r = s.submit_raw("?stages=frames", "application/octet-stream", b"solid x".to_vec()).await;
+    let r = s.submit_raw("?stages=smoothing", "application/octet-stream", b"solid x".to_vec()).await;
     let body = expect_problem(r, 422, "invalid-params").await;
     assert_eq!(body["field"], "stages[0]");
     // Multipart: params part with an unknown field; unknown part; no file part.

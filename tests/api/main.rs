@@ -11,3 +11,4 @@ mod formats;
 mod jobs;
 mod restart;
 mod spec;
+mod stages;

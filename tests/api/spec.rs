@@ -104,6 +104,7 @@ fn option_schemas_list_exactly_the_option_fields() {
         ("PipelineParams", fields(serde_json::to_value(meshatlas::pipeline::PipelineParams::default()).unwrap())),
         ("LoadOptions", fields(serde_json::to_value(meshatlas::io::LoadOptions::default()).unwrap())),
         ("AtlasOptions", fields(serde_json::to_value(meshatlas::atlas::AtlasOptions::default()).unwrap())),
+        ("FramesOptions", fields(serde_json::to_value(meshatlas::frames::FramesOptions::default()).unwrap())),
         (
             "CrossfieldOptions",
             fields(serde_json::to_value(meshatlas::crossfield::CrossfieldOptions::default()).unwrap()),
