@@ -2,7 +2,7 @@
 //! whole stage (volume, field, singular edges) and peak memory.
 //!
 //! ```text
-//! cargo run --release --example frames_bench -- [target_tets ...]
+//! cargo bench --bench frames -- [target_tets ...]
 //! ```
 //! Default targets: 100000 1000000. The lattice spacing is chosen from the
 //! estimate `12 V / h³` tetrahedra. Peak memory is `VmHWM` of

@@ -1,7 +1,7 @@
 //! Crossfield timings and singularity counts, side by side with Gmsh.
 //!
 //! ```text
-//! cargo run --release --example crossfield_bench -- [--gmsh] [--eps X] [--n 6] [--weak] INPUT...
+//! cargo bench --bench crossfield -- [--gmsh] [--eps X] [--n 6] [--weak] INPUT...
 //! ```
 //! INPUT is an STL/OBJ path or a fixture: `disk:RINGS`, `sphere:LEVEL`,
 //! `torus:NMAJOR:NMINOR` (R = 1, r = 0.4), `lshape:N`, `square:N`.
@@ -64,7 +64,8 @@ fn gmsh_seconds(path: &str) -> Option<(f64, bool)> {
 
 fn main() {
     meshatlas::linalg::use_sequential_kernels();
-    let mut args: Vec<String> = std::env::args().skip(1).collect();
+    // `cargo bench` passes `--bench`; it is not ours.
+    let mut args: Vec<String> = std::env::args().skip(1).filter(|a| a != "--bench").collect();
     let mut opts = CrossfieldOptions::default();
     let mut gmsh = false;
     let mut verbose = false;
