@@ -13,10 +13,12 @@
 
 pub mod assembly;
 pub mod error;
+pub mod krylov;
 pub mod solvers;
 
 pub use assembly::{Pattern, Triplets};
 pub use error::LinalgError;
+pub use krylov::{KrylovReport, bicgstab, bicgstab_block, sparse_matvec};
 pub use solvers::{CholeskySolver, LuSolver};
 
 /// A sparse matrix in compressed column form.

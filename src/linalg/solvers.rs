@@ -19,8 +19,10 @@ impl LuSolver {
     /// # Errors
     /// [`LinalgError::Singular`] when a pivot vanishes.
     pub fn new(a: &SparseMatrix) -> Result<Self, LinalgError> {
-        let symbolic = SymbolicLu::try_new(a.symbolic()).map_err(|e| LinalgError::Internal(format!("{e:?}")))?;
-        let lu = Lu::try_new_with_symbolic(symbolic, a.as_ref()).map_err(|_| LinalgError::Singular { kind: "LU" })?;
+        let symbolic = SymbolicLu::try_new(a.symbolic())
+            .map_err(|e| LinalgError::Internal(format!("{e:?}")))?;
+        let lu = Lu::try_new_with_symbolic(symbolic, a.as_ref())
+            .map_err(|_| LinalgError::Singular { kind: "LU" })?;
         Ok(Self { lu, n: a.nrows() })
     }
 
@@ -49,11 +51,15 @@ impl CholeskySolver {
     /// # Errors
     /// [`LinalgError::Singular`] when `a` is not positive definite.
     pub fn new(a: &SparseMatrix) -> Result<Self, LinalgError> {
-        let symbolic =
-            SymbolicLlt::try_new(a.symbolic(), Side::Lower).map_err(|e| LinalgError::Internal(format!("{e:?}")))?;
+        let symbolic = SymbolicLlt::try_new(a.symbolic(), Side::Lower)
+            .map_err(|e| LinalgError::Internal(format!("{e:?}")))?;
         let llt = Llt::try_new_with_symbolic(symbolic.clone(), a.as_ref(), Side::Lower)
             .map_err(|_| LinalgError::Singular { kind: "Cholesky" })?;
-        Ok(Self { symbolic, llt, n: a.nrows() })
+        Ok(Self {
+            symbolic,
+            llt,
+            n: a.nrows(),
+        })
     }
 
     /// Refactor a matrix with the same sparsity pattern, reusing the analysis.
@@ -62,7 +68,10 @@ impl CholeskySolver {
     /// [`LinalgError::Singular`] when `a` is not positive definite.
     pub fn refactor(&mut self, a: &SparseMatrix) -> Result<(), LinalgError> {
         if a.nrows() != self.n {
-            return Err(LinalgError::DimensionMismatch { expected: self.n, got: a.nrows() });
+            return Err(LinalgError::DimensionMismatch {
+                expected: self.n,
+                got: a.nrows(),
+            });
         }
         self.llt = Llt::try_new_with_symbolic(self.symbolic.clone(), a.as_ref(), Side::Lower)
             .map_err(|_| LinalgError::Singular { kind: "Cholesky" })?;
@@ -76,12 +85,35 @@ impl CholeskySolver {
     pub fn solve_columns(&self, rhs: &mut [Vec<f64>]) -> Result<(), LinalgError> {
         solve_columns_with(&self.llt, self.n, rhs)
     }
+
+    /// Replace `x` by `A⁻¹ x` (no allocation; for use inside iterative solvers).
+    ///
+    /// # Panics
+    /// When `x.len()` differs from the matrix size.
+    pub fn solve_in_place(&self, x: &mut [f64]) {
+        assert_eq!(x.len(), self.n, "right-hand side length");
+        let n = self.n;
+        self.llt
+            .solve_in_place(faer::MatMut::from_column_major_slice_mut(x, n, 1));
+    }
+
+    /// Size of the factored matrix.
+    pub fn dim(&self) -> usize {
+        self.n
+    }
 }
 
 /// Copy columns into one dense block, solve once, copy back.
-fn solve_columns_with(solver: &impl Solve<f64>, n: usize, rhs: &mut [Vec<f64>]) -> Result<(), LinalgError> {
+fn solve_columns_with(
+    solver: &impl Solve<f64>,
+    n: usize,
+    rhs: &mut [Vec<f64>],
+) -> Result<(), LinalgError> {
     if let Some(bad) = rhs.iter().find(|c| c.len() != n) {
-        return Err(LinalgError::DimensionMismatch { expected: n, got: bad.len() });
+        return Err(LinalgError::DimensionMismatch {
+            expected: n,
+            got: bad.len(),
+        });
     }
     let mut block = Mat::<f64>::from_fn(n, rhs.len(), |i, j| rhs[j][i]);
     solver.solve_in_place(block.as_mut());
@@ -131,7 +163,8 @@ mod tests {
         let t = laplacian(40, 0.0);
         let mut s = CholeskySolver::new(&t.to_matrix().unwrap()).unwrap();
         let t2 = laplacian(40, 1.0);
-        s.refactor(&t2.pattern().unwrap().matrix(t2.values()).unwrap()).unwrap();
+        s.refactor(&t2.pattern().unwrap().matrix(t2.values()).unwrap())
+            .unwrap();
         let mut cols = vec![vec![1.0; 40]];
         s.solve_columns(&mut cols).unwrap();
         // Residual of the shifted system.
@@ -141,7 +174,10 @@ mod tests {
         let mut neg = Triplets::new(2, 2);
         neg.push(0, 0, -1.0);
         neg.push(1, 1, 1.0);
-        assert!(matches!(CholeskySolver::new(&neg.to_matrix().unwrap()), Err(LinalgError::Singular { .. })));
+        assert!(matches!(
+            CholeskySolver::new(&neg.to_matrix().unwrap()),
+            Err(LinalgError::Singular { .. })
+        ));
         let mut wrong = vec![vec![1.0; 3]];
         assert!(s.solve_columns(&mut wrong).is_err());
     }

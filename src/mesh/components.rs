@@ -17,7 +17,10 @@ pub struct DisjointSets {
 impl DisjointSets {
     /// `n` singletons.
     pub fn new(n: usize) -> Self {
-        Self { parent: (0..n as u32).collect(), size: vec![1; n] }
+        Self {
+            parent: (0..n as u32).collect(),
+            size: vec![1; n],
+        }
     }
 
     /// Representative of the set containing `x`.
@@ -97,7 +100,10 @@ pub fn face_components(topo: &Topology, blocked: impl Fn(EdgeId) -> bool) -> Com
         }
     }
     let (component_per_face, n_components) = sets.labels();
-    Components { component_per_face, n_components }
+    Components {
+        component_per_face,
+        n_components,
+    }
 }
 
 /// Edge-connected components of the whole mesh.
@@ -120,40 +126,57 @@ pub fn referenced_vertices(mesh: &TriMesh) -> Vec<bool> {
 /// one fan (triangles around the vertex connected through edges at the vertex).
 /// Returns the vertices, sorted.
 pub fn nonmanifold_vertices(mesh: &TriMesh, topo: &Topology) -> Vec<VertexId> {
-    let mut out = Vec::new();
-    let mut local: Vec<FaceId> = Vec::new();
-    for v in 0..mesh.n_vertices() {
-        let v = VertexId::new(v);
-        local.clear();
-        local.extend_from_slice(topo.vertex_faces(v));
-        if local.len() < 2 {
-            continue;
-        }
-        if count_fans(mesh, topo, v, &local) > 1 {
-            out.push(v);
-        }
-    }
-    out
+    use rayon::prelude::*;
+    let flags: Vec<bool> = (0..mesh.n_vertices())
+        .into_par_iter()
+        .map_init(Vec::new, |parent, v| {
+            count_fans(mesh, topo, VertexId::new(v), parent) > 1
+        })
+        .collect();
+    flags
+        .iter()
+        .enumerate()
+        .filter(|(_, f)| **f)
+        .map(|(v, _)| VertexId::new(v))
+        .collect()
 }
 
-/// Number of fans of triangles `faces` around `v` (small local union–find).
-fn count_fans(mesh: &TriMesh, topo: &Topology, v: VertexId, faces: &[FaceId]) -> usize {
-    let mut sets = DisjointSets::new(faces.len());
+/// Number of fans of the triangles around `v`: a union–find over the
+/// triangles of the one-ring, in the reusable buffer `parent` (no allocation
+/// per vertex once the buffer has grown to the largest valence).
+fn count_fans(mesh: &TriMesh, topo: &Topology, v: VertexId, parent: &mut Vec<u32>) -> usize {
+    let faces = topo.vertex_faces(v);
+    if faces.len() < 2 {
+        return faces.len();
+    }
+    parent.clear();
+    parent.extend(0..faces.len() as u32);
+    fn root(parent: &mut [u32], mut x: u32) -> u32 {
+        while parent[x as usize] != x {
+            parent[x as usize] = parent[parent[x as usize] as usize];
+            x = parent[x as usize];
+        }
+        x
+    }
+    let mut n_fans = faces.len();
     for (i, &f) in faces.iter().enumerate() {
         let t = mesh.triangles[f.idx()];
         for k in 0..3 {
             if t[k] != v && t[(k + 1) % 3] != v {
                 continue;
             }
-            let e = topo.face_edges[f.idx()][k];
-            for g in topo.edge_faces(e) {
+            for g in topo.edge_faces(topo.face_edges[f.idx()][k]) {
                 if let Some(j) = faces.iter().position(|x| x == g) {
-                    sets.union(i as u32, j as u32);
+                    let (a, b) = (root(parent, i as u32), root(parent, j as u32));
+                    if a != b {
+                        parent[a as usize] = b;
+                        n_fans -= 1;
+                    }
                 }
             }
         }
     }
-    sets.labels().1
+    n_fans
 }
 
 #[cfg(test)]
@@ -167,8 +190,10 @@ mod tests {
         let a = fixtures::tetrahedron();
         let mut m = a.clone();
         let n = m.positions.len() as u32;
-        m.positions.extend(a.positions.iter().map(|p| p + Vec3::new(5.0, 0.0, 0.0)));
-        m.triangles.extend(a.triangles.iter().map(|t| t.map(|v| VertexId(v.0 + n))));
+        m.positions
+            .extend(a.positions.iter().map(|p| p + Vec3::new(5.0, 0.0, 0.0)));
+        m.triangles
+            .extend(a.triangles.iter().map(|t| t.map(|v| VertexId(v.0 + n))));
         let t = Topology::new(&m);
         let c = connected_components(&t);
         assert_eq!(c.n_components, 2);

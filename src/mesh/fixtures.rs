@@ -18,15 +18,54 @@ pub fn tetrahedron() -> TriMesh {
     )
 }
 
-/// Unit square `[0,1]²` in the plane `z = 0`, `n × n` cells, two triangles each.
+/// Unit square `[0,1]²` in the plane `z = 0`, `n × n` cells, two triangles
+/// each, diagonals alternating with the cell parity (a "union jack" pattern,
+/// symmetric under the square's reflections).
 pub fn square(n: usize) -> TriMesh {
-    grid_mesh(n, n, |i, j| Some(Vec3::new(i as f64 / n as f64, j as f64 / n as f64, 0.0)))
+    grid_mesh_cells(
+        n,
+        n,
+        |_, _| true,
+        true,
+        |i, j| Vec3::new(i as f64 / n as f64, j as f64 / n as f64, 0.0),
+    )
+}
+
+/// Unit square with every diagonal in the same direction (the "structured"
+/// mesh of thesis appendix A.B, on which mean value coordinates are not a
+/// Laplacian).
+pub fn square_structured(n: usize) -> TriMesh {
+    grid_mesh(n, n, |i, j| {
+        Some(Vec3::new(i as f64 / n as f64, j as f64 / n as f64, 0.0))
+    })
 }
 
 /// L-shaped domain `[0,2]² \ (1,2]²` with `n` cells per unit length.
 pub fn l_shape(n: usize) -> TriMesh {
-    let m = grid_mesh_cells(2 * n, 2 * n, |i, j| !(i >= n && j >= n), |i, j| {
-        Vec3::new(i as f64 / n as f64, j as f64 / n as f64, 0.0)
+    let m = grid_mesh_cells(
+        2 * n,
+        2 * n,
+        |i, j| !(i >= n && j >= n),
+        true,
+        |i, j| Vec3::new(i as f64 / n as f64, j as f64 / n as f64, 0.0),
+    );
+    compact(m)
+}
+
+/// A concave planar domain with a concave hole (thesis ch. 2 fig. 2.9): the
+/// L-shaped region `[0,1]² \ [2/3,1]²` with an L-shaped hole made of the
+/// squares `[1/6,1/2]×[1/6,1/3]` and `[1/6,1/3]×[1/3,1/2]`; `n` cells per unit
+/// length (a multiple of 6).
+pub fn l_plate_with_l_hole(n: usize) -> TriMesh {
+    let k = n / 6;
+    let keep = |i: usize, j: usize| {
+        let outer_notch = i >= 4 * k && j >= 4 * k;
+        let hole_bar = (k..3 * k).contains(&i) && (k..2 * k).contains(&j);
+        let hole_leg = (k..2 * k).contains(&i) && (2 * k..3 * k).contains(&j);
+        !(outer_notch || hole_bar || hole_leg)
+    };
+    let m = grid_mesh_cells(6 * k, 6 * k, keep, true, |i, j| {
+        Vec3::new(i as f64 / (6 * k) as f64, j as f64 / (6 * k) as f64, 0.0)
     });
     compact(m)
 }
@@ -84,18 +123,43 @@ pub fn annulus(r_in: f64, r_out: f64, n_around: usize, n_rings: usize) -> TriMes
 pub fn icosphere(level: usize) -> TriMesh {
     let t = (1.0 + 5f64.sqrt()) / 2.0;
     let mut positions: Vec<Vec3> = [
-        (-1.0, t, 0.0), (1.0, t, 0.0), (-1.0, -t, 0.0), (1.0, -t, 0.0),
-        (0.0, -1.0, t), (0.0, 1.0, t), (0.0, -1.0, -t), (0.0, 1.0, -t),
-        (t, 0.0, -1.0), (t, 0.0, 1.0), (-t, 0.0, -1.0), (-t, 0.0, 1.0),
+        (-1.0, t, 0.0),
+        (1.0, t, 0.0),
+        (-1.0, -t, 0.0),
+        (1.0, -t, 0.0),
+        (0.0, -1.0, t),
+        (0.0, 1.0, t),
+        (0.0, -1.0, -t),
+        (0.0, 1.0, -t),
+        (t, 0.0, -1.0),
+        (t, 0.0, 1.0),
+        (-t, 0.0, -1.0),
+        (-t, 0.0, 1.0),
     ]
     .iter()
     .map(|&(x, y, z)| Vec3::new(x, y, z).normalize())
     .collect();
     let mut tris: Vec<[u32; 3]> = vec![
-        [0, 11, 5], [0, 5, 1], [0, 1, 7], [0, 7, 10], [0, 10, 11],
-        [1, 5, 9], [5, 11, 4], [11, 10, 2], [10, 7, 6], [7, 1, 8],
-        [3, 9, 4], [3, 4, 2], [3, 2, 6], [3, 6, 8], [3, 8, 9],
-        [4, 9, 5], [2, 4, 11], [6, 2, 10], [8, 6, 7], [9, 8, 1],
+        [0, 11, 5],
+        [0, 5, 1],
+        [0, 1, 7],
+        [0, 7, 10],
+        [0, 10, 11],
+        [1, 5, 9],
+        [5, 11, 4],
+        [11, 10, 2],
+        [10, 7, 6],
+        [7, 1, 8],
+        [3, 9, 4],
+        [3, 4, 2],
+        [3, 2, 6],
+        [3, 6, 8],
+        [3, 8, 9],
+        [4, 9, 5],
+        [2, 4, 11],
+        [6, 2, 10],
+        [8, 6, 7],
+        [9, 8, 1],
     ];
     for _ in 0..level {
         let mut mid: HashMap<(u32, u32), u32> = HashMap::new();
@@ -103,7 +167,8 @@ pub fn icosphere(level: usize) -> TriMesh {
         for [a, b, c] in tris {
             let mut m = |x: u32, y: u32| {
                 *mid.entry((x.min(y), x.max(y))).or_insert_with(|| {
-                    positions.push(((positions[x as usize] + positions[y as usize]) * 0.5).normalize());
+                    positions
+                        .push(((positions[x as usize] + positions[y as usize]) * 0.5).normalize());
                     (positions.len() - 1) as u32
                 })
             };
@@ -146,20 +211,27 @@ pub fn cube(n: usize) -> TriMesh {
     let n_i = n as i64;
     for axis in 0..3 {
         for side in [0i64, n_i] {
-            let (b, c) = if side == n_i { ((axis + 1) % 3, (axis + 2) % 3) } else { ((axis + 2) % 3, (axis + 1) % 3) };
+            let (b, c) = if side == n_i {
+                ((axis + 1) % 3, (axis + 2) % 3)
+            } else {
+                ((axis + 2) % 3, (axis + 1) % 3)
+            };
             let mut vid = |i: i64, j: i64| {
                 let mut key = [0i64; 3];
                 key[axis] = side;
                 key[b] = i;
                 key[c] = j;
                 *index.entry(key).or_insert_with(|| {
-                    positions.push(Vec3::from_iterator(key.iter().map(|&k| 2.0 * k as f64 / n as f64 - 1.0)));
+                    positions.push(Vec3::from_iterator(
+                        key.iter().map(|&k| 2.0 * k as f64 / n as f64 - 1.0),
+                    ));
                     (positions.len() - 1) as u32
                 })
             };
             for i in 0..n_i {
                 for j in 0..n_i {
-                    let (p00, p10, p11, p01) = (vid(i, j), vid(i + 1, j), vid(i + 1, j + 1), vid(i, j + 1));
+                    let (p00, p10, p11, p01) =
+                        (vid(i, j), vid(i + 1, j), vid(i + 1, j + 1), vid(i, j + 1));
                     tris.push([p00, p10, p11]);
                     tris.push([p00, p11, p01]);
                 }
@@ -198,13 +270,21 @@ pub fn mobius_band(n: usize) -> TriMesh {
         let u = TAU * i as f64 / n as f64;
         for t in [-1.0f64, 1.0] {
             let r = 1.0 + 0.25 * t * (u / 2.0).cos();
-            positions.push(Vec3::new(r * u.cos(), r * u.sin(), 0.25 * t * (u / 2.0).sin()));
+            positions.push(Vec3::new(
+                r * u.cos(),
+                r * u.sin(),
+                0.25 * t * (u / 2.0).sin(),
+            ));
         }
     }
     let mut tris = Vec::new();
     for i in 0..n {
         let (a0, b0) = (2 * i as u32, 2 * i as u32 + 1);
-        let (a1, b1) = if i + 1 < n { (2 * (i + 1) as u32, 2 * (i + 1) as u32 + 1) } else { (1, 0) };
+        let (a1, b1) = if i + 1 < n {
+            (2 * (i + 1) as u32, 2 * (i + 1) as u32 + 1)
+        } else {
+            (1, 0)
+        };
         tris.push([a0, a1, b1]);
         tris.push([a0, b1, b0]);
     }
@@ -231,11 +311,24 @@ pub fn compact(mut mesh: TriMesh) -> TriMesh {
 
 /// Structured `nx × ny` grid with every vertex present.
 fn grid_mesh(nx: usize, ny: usize, at: impl Fn(usize, usize) -> Option<Vec3>) -> TriMesh {
-    grid_mesh_cells(nx, ny, |_, _| true, |i, j| at(i, j).expect("grid vertex"))
+    grid_mesh_cells(
+        nx,
+        ny,
+        |_, _| true,
+        false,
+        |i, j| at(i, j).expect("grid vertex"),
+    )
 }
 
-/// Structured grid keeping only the cells `(i, j)` for which `keep` holds.
-fn grid_mesh_cells(nx: usize, ny: usize, keep: impl Fn(usize, usize) -> bool, at: impl Fn(usize, usize) -> Vec3) -> TriMesh {
+/// Structured grid keeping only the cells `(i, j)` for which `keep` holds;
+/// with `alternate` the diagonal direction flips with the cell parity.
+fn grid_mesh_cells(
+    nx: usize,
+    ny: usize,
+    keep: impl Fn(usize, usize) -> bool,
+    alternate: bool,
+    at: impl Fn(usize, usize) -> Vec3,
+) -> TriMesh {
     let mut positions = Vec::with_capacity((nx + 1) * (ny + 1));
     for j in 0..=ny {
         for i in 0..=nx {
@@ -246,7 +339,13 @@ fn grid_mesh_cells(nx: usize, ny: usize, keep: impl Fn(usize, usize) -> bool, at
     let mut tris = Vec::new();
     for j in 0..ny {
         for i in 0..nx {
-            if keep(i, j) {
+            if !keep(i, j) {
+                continue;
+            }
+            if alternate && (i + j) % 2 == 1 {
+                tris.push([id(i, j), id(i + 1, j), id(i, j + 1)]);
+                tris.push([id(i + 1, j), id(i + 1, j + 1), id(i, j + 1)]);
+            } else {
                 tris.push([id(i, j), id(i + 1, j), id(i + 1, j + 1)]);
                 tris.push([id(i, j), id(i + 1, j + 1), id(i, j + 1)]);
             }
@@ -272,11 +371,21 @@ fn zip_rings(positions: &[Vec3], inner: &[u32], outer: &[u32], tris: &mut Vec<[u
     }
     let next_angle = |ring: &[u32], i: usize| {
         let a = angle(ring[(i + 1) % ring.len()]);
-        if i + 1 >= ring.len() || a < angle(ring[i]) { a + TAU } else { a }
+        if i + 1 >= ring.len() || a < angle(ring[i]) {
+            a + TAU
+        } else {
+            a
+        }
     };
     let (mut i, mut j) = (0, 0);
     while i < m || j < n {
-        let advance_outer = if i == m { true } else if j == n { false } else { next_angle(outer, j) <= next_angle(inner, i) };
+        let advance_outer = if i == m {
+            true
+        } else if j == n {
+            false
+        } else {
+            next_angle(outer, j) <= next_angle(inner, i)
+        };
         if advance_outer {
             tris.push([inner[i % m], outer[j % n], outer[(j + 1) % n]]);
             j += 1;
@@ -297,15 +406,24 @@ mod tests {
         let t = Topology::new(m);
         assert_eq!(n_inconsistent_edges(m, &t), 0);
         assert_eq!(t.n_nonmanifold_edges(), 0);
-        let min_area = (0..m.n_faces()).map(|f| m.face_area(FaceId::new(f))).fold(f64::INFINITY, f64::min);
+        let min_area = (0..m.n_faces())
+            .map(|f| m.face_area(FaceId::new(f)))
+            .fold(f64::INFINITY, f64::min);
         assert!(min_area > 0.0);
     }
 
     #[test]
     fn fixtures_are_valid_and_oriented() {
         for m in [
-            tetrahedron(), square(4), l_shape(3), disk(6), annulus(0.4, 1.0, 30, 4), icosphere(3),
-            torus(1.0, 0.4, 30, 12), cube(4), cylinder(1.0, 2.0, 16, 5),
+            tetrahedron(),
+            square(4),
+            l_shape(3),
+            disk(6),
+            annulus(0.4, 1.0, 30, 4),
+            icosphere(3),
+            torus(1.0, 0.4, 30, 12),
+            cube(4),
+            cylinder(1.0, 2.0, 16, 5),
         ] {
             check(&m);
         }
@@ -319,7 +437,12 @@ mod tests {
         for m in [square(3), l_shape(2), disk(5), annulus(0.4, 1.0, 20, 3)] {
             assert!((0..m.n_faces()).all(|f| m.face_normal(FaceId::new(f)).z > 0.999));
         }
-        for m in [icosphere(2), torus(1.0, 0.4, 24, 12), cube(3), tetrahedron()] {
+        for m in [
+            icosphere(2),
+            torus(1.0, 0.4, 24, 12),
+            cube(3),
+            tetrahedron(),
+        ] {
             assert!(m.signed_volume() > 0.0);
         }
         let d = disk(8);

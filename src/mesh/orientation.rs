@@ -39,7 +39,9 @@ pub fn orient_consistently(mesh: &mut TriMesh, topo: &mut Topology) -> Orientati
         queue.push_back(faces[0]);
         while let Some(f) = queue.pop_front() {
             for i in 0..3 {
-                let Some(g) = topo.face_across(f, i) else { continue };
+                let Some(g) = topo.face_across(f, i) else {
+                    continue;
+                };
                 let same_dir = traverses_same_direction(mesh, topo, f, i, g);
                 let want = flip[f.idx()] ^ same_dir;
                 if seen[g.idx()] {
@@ -78,7 +80,13 @@ pub fn orient_consistently(mesh: &mut TriMesh, topo: &mut Topology) -> Orientati
 }
 
 /// True when triangle `g` traverses local edge `i` of `f` in the same direction as `f`.
-fn traverses_same_direction(mesh: &TriMesh, topo: &Topology, f: FaceId, i: usize, g: FaceId) -> bool {
+fn traverses_same_direction(
+    mesh: &TriMesh,
+    topo: &Topology,
+    f: FaceId,
+    i: usize,
+    g: FaceId,
+) -> bool {
     let e = topo.face_edges[f.idx()][i];
     let j = topo.local_edge(g, e).expect("neighbour shares the edge");
     mesh.triangles[f.idx()][i] == mesh.triangles[g.idx()][j]
@@ -86,7 +94,11 @@ fn traverses_same_direction(mesh: &TriMesh, topo: &Topology, f: FaceId, i: usize
 
 /// True when every edge of these triangles has exactly two triangles.
 fn is_closed(topo: &Topology, faces: &[FaceId]) -> bool {
-    faces.iter().all(|f| topo.face_edges[f.idx()].iter().all(|&e| topo.edge_valence(e) == 2))
+    faces.iter().all(|f| {
+        topo.face_edges[f.idx()]
+            .iter()
+            .all(|&e| topo.edge_valence(e) == 2)
+    })
 }
 
 /// Signed volume enclosed by the given triangles.
@@ -105,7 +117,9 @@ pub fn n_inconsistent_edges(mesh: &TriMesh, topo: &Topology) -> usize {
     (0..topo.n_edges())
         .filter(|&e| match topo.edge_faces(super::EdgeId::new(e)) {
             [f, g] => {
-                let i = topo.local_edge(*f, super::EdgeId::new(e)).expect("own edge");
+                let i = topo
+                    .local_edge(*f, super::EdgeId::new(e))
+                    .expect("own edge");
                 traverses_same_direction(mesh, topo, *f, i, *g)
             }
             _ => false,

@@ -1,0 +1,394 @@
+//! Mean value coordinates parameterization of a patch (thesis ch. 2 §3.3–3.4).
+//!
+//! Every vertex not on the outer boundary satisfies the difference scheme
+//! (2.4) `Σ_j λ_ij (u_i − u_j) = 0` with Floater's mean value weights (2.7)
+//! `λ_ij = (tan(θ_k/2) + tan(θ_l/2)) / l_ij`, where `θ_k`, `θ_l` are the
+//! angles at `i` of the two triangles sharing edge `ij` and `l_ij` its 3D
+//! length. The weights are positive, so with the outer loop on the (convex)
+//! unit circle the map is one-to-one (§3). The outer loop is the longest
+//! boundary loop, placed on the unit circle by arc length (Dirichlet). A hole
+//! with at most `max_fill_vertices` vertices is filled virtually (§3.4): its
+//! vertices `h_j` are assumed on a circle of radius `r = P / 2π` (`P` its
+//! perimeter) around a pseudo-centre `c` (one extra unknown), each virtual
+//! triangle `(h_j, h_{j+1}, c)` isosceles with apex angle `α_j = l_j / r`
+//! and base angles `(π − α_j) / 2`; these triangles add mean value weights
+//! like real ones but are never built. Larger holes get homogeneous Neumann
+//! conditions: their vertices keep only their real neighbours. One sparse
+//! non-symmetric matrix `A`, two right-hand sides (u and v).
+//!
+//! Solvers ([`MvcSolver`]): a sparse LU of `A`, factored once for both
+//! right-hand sides; or BiCGSTAB preconditioned by the sparse Cholesky
+//! factor of the symmetric M-matrix `S` with weights `(λ_ij + λ_ji) / 2`
+//! (SPD: weakly diagonally dominant with Dirichlet rows). MVC weights are
+//! nearly symmetric on reasonable meshes, so `A S⁻¹` is close to the
+//! identity and a few iterations suffice; the Cholesky factor has far less
+//! fill than the LU (measurements in the atlas report and the benchmarks).
+
+use super::error::AtlasError;
+use super::patch::PatchMesh;
+use crate::geom::{Vec2, Vec3};
+use crate::linalg::{CholeskySolver, LuSolver, Triplets, bicgstab_block};
+use crate::mesh::VertexId;
+use crate::mesh::boundary::BoundaryLoop;
+use serde::{Deserialize, Serialize};
+use std::f64::consts::{PI, TAU};
+
+/// Which sparse solver computes the map.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "kebab-case")]
+pub enum MvcSolver {
+    /// Sparse LU of the MVC matrix, one factorization for both right-hand sides.
+    Lu,
+    /// BiCGSTAB preconditioned by a Cholesky factor of the symmetrized matrix;
+    /// falls back to LU if it does not converge.
+    Bicgstab,
+}
+
+/// Relative residual the iterative solver must reach.
+const KRYLOV_TOLERANCE: f64 = 1e-13;
+/// Iteration cap of the iterative solver before falling back to LU.
+const KRYLOV_MAX_ITERATIONS: usize = 200;
+
+/// The parametric coordinates of a patch and how its holes were treated.
+#[derive(Debug, Clone)]
+pub struct PatchParameterization {
+    /// `(u, v)` of every local vertex of the patch.
+    pub uv: Vec<Vec2>,
+    /// Holes filled with a pseudo-centre.
+    pub n_holes_filled: usize,
+    /// Holes left with homogeneous Neumann conditions.
+    pub n_holes_neumann: usize,
+    /// Size of the solved system.
+    pub n_unknowns: usize,
+    /// Solver actually used (an iterative solve that fails falls back to LU).
+    pub solver: MvcSolver,
+    /// BiCGSTAB iterations for u and v (0 with LU).
+    pub iterations: [usize; 2],
+}
+
+/// Mean value parameterization of `patch` with `loops[0]` as the outer loop.
+///
+/// # Errors
+/// [`AtlasError::Linalg`] when the system cannot be factored.
+pub fn mean_value_parameterization(
+    patch: &PatchMesh,
+    loops: &[BoundaryLoop],
+    max_fill_vertices: usize,
+    solver: MvcSolver,
+) -> Result<PatchParameterization, AtlasError> {
+    let n_v = patch.mesh.n_vertices();
+    let outer = &loops[0];
+    let mut uv = vec![Vec2::zeros(); n_v];
+    let mut unknown_of = vec![usize::MAX; n_v];
+    for (v, p) in outer
+        .vertices
+        .iter()
+        .zip(circle_by_arc_length(&patch.mesh.positions, &outer.vertices))
+    {
+        uv[v.idx()] = p;
+    }
+    let on_outer: Vec<bool> = {
+        let mut f = vec![false; n_v];
+        outer.vertices.iter().for_each(|v| f[v.idx()] = true);
+        f
+    };
+    let mut n_unknowns = 0;
+    for (v, slot) in unknown_of.iter_mut().enumerate() {
+        if !on_outer[v] {
+            *slot = n_unknowns;
+            n_unknowns += 1;
+        }
+    }
+    let filled: Vec<&BoundaryLoop> = loops[1..]
+        .iter()
+        .filter(|h| h.vertices.len() <= max_fill_vertices)
+        .collect();
+    let n_centres = filled.len();
+    let n = n_unknowns + n_centres;
+
+    let mut system = MvcSystem::new(
+        n,
+        12 * patch.n_faces() + 6 * filled.iter().map(|h| h.vertices.len()).sum::<usize>(),
+    );
+    let pos = &patch.mesh.positions;
+    for t in &patch.mesh.triangles {
+        for c in 0..3 {
+            let (i, j, k) = (t[c], t[(c + 1) % 3], t[(c + 2) % 3]);
+            let (eij, eik) = (pos[j.idx()] - pos[i.idx()], pos[k.idx()] - pos[i.idx()]);
+            let w = tan_half_angle(&eij, &eik);
+            let row = unknown_of[i.idx()];
+            if row != usize::MAX {
+                system.add(row, w / eij.norm(), unknown_of[j.idx()], uv[j.idx()]);
+                system.add(row, w / eik.norm(), unknown_of[k.idx()], uv[k.idx()]);
+            }
+        }
+    }
+    for (h, hole) in filled.iter().enumerate() {
+        add_virtual_fill(
+            &mut system,
+            pos,
+            &hole.vertices,
+            &unknown_of,
+            n_unknowns + h,
+        );
+    }
+    let (a, s, mut rhs) = system.finish()?;
+    let (used, iterations) = solve(&a, &s, &mut rhs, solver)?;
+    for v in 0..n_v {
+        let r = unknown_of[v];
+        if r != usize::MAX {
+            uv[v] = Vec2::new(rhs[0][r], rhs[1][r]);
+        }
+    }
+    Ok(PatchParameterization {
+        uv,
+        n_holes_filled: n_centres,
+        n_holes_neumann: loops.len() - 1 - n_centres,
+        n_unknowns: n,
+        solver: used,
+        iterations,
+    })
+}
+
+/// Solve `A x = b` for both columns of `rhs` in place with the chosen solver;
+/// returns the solver used and the iteration counts.
+fn solve(
+    a: &crate::linalg::SparseMatrix,
+    s: &crate::linalg::SparseMatrix,
+    rhs: &mut [Vec<f64>],
+    solver: MvcSolver,
+) -> Result<(MvcSolver, [usize; 2]), AtlasError> {
+    if solver == MvcSolver::Bicgstab
+        && let Ok(chol) = CholeskySolver::new(s)
+    {
+        let precond = |cols: &mut [Vec<f64>]| {
+            // Lengths always match the factored matrix here.
+            let _ = chol.solve_columns(cols);
+        };
+        let mut x = rhs.to_vec();
+        precond(&mut x);
+        let reps = bicgstab_block(
+            a,
+            &precond,
+            rhs,
+            &mut x,
+            KRYLOV_TOLERANCE,
+            KRYLOV_MAX_ITERATIONS,
+        );
+        if reps.iter().all(|r| r.converged) {
+            rhs.clone_from_slice(&x);
+            return Ok((
+                MvcSolver::Bicgstab,
+                [reps[0].iterations, reps[1].iterations],
+            ));
+        }
+    }
+    LuSolver::new(a)?.solve_columns(rhs)?;
+    Ok((MvcSolver::Lu, [0, 0]))
+}
+
+/// Points on the unit circle at angles proportional to arc length along the loop.
+pub fn circle_by_arc_length(positions: &[Vec3], loop_vertices: &[VertexId]) -> Vec<Vec2> {
+    let m = loop_vertices.len();
+    let mut s = Vec::with_capacity(m);
+    let mut acc = 0.0;
+    for k in 0..m {
+        s.push(acc);
+        acc += (positions[loop_vertices[(k + 1) % m].idx()] - positions[loop_vertices[k].idx()])
+            .norm();
+    }
+    let total = if acc > 0.0 { acc } else { 1.0 };
+    s.iter()
+        .map(|&sk| {
+            let t = TAU * sk / total;
+            Vec2::new(t.cos(), t.sin())
+        })
+        .collect()
+}
+
+/// `tan(θ/2)` of the angle between `a` and `b`, as `|a×b| / (|a||b| + a·b)`;
+/// finite and positive for every non-degenerate corner (capped near θ = π).
+#[inline]
+pub fn tan_half_angle(a: &Vec3, b: &Vec3) -> f64 {
+    let s = a.cross(b).norm();
+    let d = a.norm() * b.norm() + a.dot(b);
+    if d > s * 1e-15 { s / d } else { 1e15 }
+}
+
+/// Add the virtual triangles `(h_j, h_{j+1}, c)` of a filled hole to the system.
+fn add_virtual_fill(
+    system: &mut MvcSystem,
+    pos: &[Vec3],
+    hole: &[VertexId],
+    unknown_of: &[usize],
+    centre: usize,
+) {
+    let m = hole.len();
+    let lengths: Vec<f64> = (0..m)
+        .map(|j| (pos[hole[(j + 1) % m].idx()] - pos[hole[j].idx()]).norm())
+        .collect();
+    let perimeter: f64 = lengths.iter().sum();
+    if perimeter <= 0.0 {
+        return;
+    }
+    let r = perimeter / TAU;
+    for j in 0..m {
+        let (a, b) = (hole[j], hole[(j + 1) % m]);
+        let l = lengths[j].max(f64::MIN_POSITIVE);
+        let alpha = (l / r).min(PI * (1.0 - 1e-12));
+        let beta = 0.5 * (PI - alpha);
+        let tb = (0.5 * beta).tan();
+        let ta = (0.5 * alpha).tan();
+        // Corners h_j and h_{j+1}: neighbours are each other and the centre.
+        for (p, q) in [(a, b), (b, a)] {
+            let row = unknown_of[p.idx()];
+            system.add(row, tb / l, unknown_of[q.idx()], Vec2::zeros());
+            system.add(row, tb / r, centre, Vec2::zeros());
+        }
+        // Apex at the centre.
+        system.add(centre, ta / r, unknown_of[a.idx()], Vec2::zeros());
+        system.add(centre, ta / r, unknown_of[b.idx()], Vec2::zeros());
+    }
+}
+
+/// Triplets of the difference scheme `A`, of its symmetrization `S` (lower
+/// triangle), and the two right-hand sides.
+struct MvcSystem {
+    triplets: Triplets,
+    symmetric: Triplets,
+    rhs: [Vec<f64>; 2],
+}
+
+impl MvcSystem {
+    fn new(n: usize, capacity: usize) -> Self {
+        Self {
+            triplets: Triplets::with_capacity(n, n, capacity),
+            symmetric: Triplets::with_capacity(n, n, capacity),
+            rhs: [vec![0.0; n], vec![0.0; n]],
+        }
+    }
+
+    /// Add `w (u_row − u_col)` to row `row`; `col == usize::MAX` means the
+    /// neighbour is on the outer circle with known `(u, v) = fixed`.
+    #[inline]
+    fn add(&mut self, row: usize, w: f64, col: usize, fixed: Vec2) {
+        self.triplets.push(row, row, w);
+        if col == usize::MAX {
+            self.rhs[0][row] += w * fixed.x;
+            self.rhs[1][row] += w * fixed.y;
+            self.symmetric.push(row, row, w);
+        } else {
+            self.triplets.push(row, col, -w);
+            let h = 0.5 * w;
+            self.symmetric.push(row, row, h);
+            self.symmetric.push(col, col, h);
+            self.symmetric.push(row.max(col), row.min(col), -h);
+        }
+    }
+
+    /// `A`, `S` and the right-hand sides `[u, v]`.
+    fn finish(
+        self,
+    ) -> Result<
+        (
+            crate::linalg::SparseMatrix,
+            crate::linalg::SparseMatrix,
+            Vec<Vec<f64>>,
+        ),
+        AtlasError,
+    > {
+        let [u, v] = self.rhs;
+        Ok((
+            self.triplets.to_matrix()?,
+            self.symmetric.to_matrix()?,
+            vec![u, v],
+        ))
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::mesh::{FaceId, fixtures};
+
+    fn whole(m: &crate::mesh::TriMesh) -> PatchMesh {
+        PatchMesh::extract(m, &(0..m.n_faces()).map(FaceId::new).collect::<Vec<_>>())
+    }
+
+    #[test]
+    fn planar_disk_maps_to_itself() {
+        // The unit disk with its boundary on the unit circle by arc length:
+        // MVC reproduces linear functions, so the map is the identity.
+        let m = fixtures::disk(8);
+        let p = whole(&m);
+        let loops = p.loops_longest_first();
+        let par = mean_value_parameterization(&p, &loops, 100, MvcSolver::Lu).unwrap();
+        let err = p
+            .mesh
+            .positions
+            .iter()
+            .zip(&par.uv)
+            .map(|(x, u)| (x.xy() - u).norm())
+            .fold(0.0, f64::max);
+        assert!(err < 1e-12, "max error {err}");
+        // Boundary exactly on the circle.
+        for v in &loops[0].vertices {
+            assert!((par.uv[v.idx()].norm() - 1.0).abs() < 1e-15);
+        }
+    }
+
+    #[test]
+    fn iterative_and_direct_solvers_agree_on_a_curved_patch() {
+        // A bumpy, irregular patch: a sphere cap with jittered vertices.
+        let mut m = fixtures::icosphere(4);
+        for (i, p) in m.positions.iter_mut().enumerate() {
+            *p *= 1.0 + 0.05 * ((i * 7919) % 17) as f64 / 17.0;
+        }
+        let faces: Vec<FaceId> = (0..m.n_faces())
+            .filter(|&f| m.corners(FaceId::new(f)).iter().all(|c| c.z > -0.3))
+            .map(FaceId::new)
+            .collect();
+        let p = PatchMesh::extract(&m, &faces);
+        let loops = p.loops_longest_first();
+        let lu = mean_value_parameterization(&p, &loops, 100, MvcSolver::Lu).unwrap();
+        let it = mean_value_parameterization(&p, &loops, 100, MvcSolver::Bicgstab).unwrap();
+        assert_eq!(it.solver, MvcSolver::Bicgstab);
+        assert!(it.iterations[0] < 50, "{:?}", it.iterations);
+        let err = lu
+            .uv
+            .iter()
+            .zip(&it.uv)
+            .map(|(a, b)| (a - b).norm())
+            .fold(0.0, f64::max);
+        assert!(err < 1e-10, "max difference {err}");
+    }
+
+    #[test]
+    fn weights_are_positive_even_for_slivers() {
+        let a = Vec3::new(1.0, 0.0, 0.0);
+        assert!(tan_half_angle(&a, &Vec3::new(1.0, 1e-9, 0.0)) > 0.0);
+        assert!(tan_half_angle(&a, &Vec3::new(-1.0, 1e-9, 0.0)).is_finite());
+        assert!((tan_half_angle(&a, &Vec3::new(0.0, 1.0, 0.0)) - 1.0).abs() < 1e-15);
+    }
+
+    #[test]
+    fn annulus_hole_filled_or_neumann_both_injective() {
+        let m = fixtures::annulus(0.3, 1.0, 32, 6);
+        let p = whole(&m);
+        let loops = p.loops_longest_first();
+        for (max_fill, solver) in [
+            (1000, MvcSolver::Lu),
+            (0, MvcSolver::Lu),
+            (1000, MvcSolver::Bicgstab),
+            (0, MvcSolver::Bicgstab),
+        ] {
+            let par = mean_value_parameterization(&p, &loops, max_fill, solver).unwrap();
+            assert_eq!(par.solver, solver);
+            assert_eq!(par.n_holes_filled + par.n_holes_neumann, 1);
+            for t in &p.mesh.triangles {
+                let [a, b, c] = t.map(|v| par.uv[v.idx()]);
+                assert!(crate::geom::orient2d(&a, &b, &c) > 0.0);
+            }
+        }
+    }
+}

@@ -1,0 +1,812 @@
+//! VTK XML UnstructuredGrid (`.vtu`) writer: points, mixed cells, point and
+//! cell data.
+//!
+//! # File layout
+//! `<VTKFile type="UnstructuredGrid" version="1.0" byte_order="LittleEndian"
+//! header_type="UInt64|UInt32">` with one `<Piece>` holding `<PointData>`,
+//! `<CellData>`, `<Points>` (Float64 × 3) and `<Cells>` (`connectivity`,
+//! `offsets` = end of each cell in `connectivity`, `types`). Connectivity and
+//! offsets are `Int32` when every index fits, `Int64` otherwise.
+//! Cell types: vertex 1, line 3, triangle 5, tetra 10. Cell data follow the
+//! cells block by block, in the order of [`VtuMesh::cells`].
+//!
+//! # Encodings ([`VtuEncoding`])
+//! - `Ascii`: values as text (shortest round-trip floats); biggest, slowest.
+//! - `Base64`: `format="binary"` inline, the byte-count header and the data
+//!   base64-encoded *separately*, as VTK writes them (meshio and VTK both
+//!   read that; a single stream is misread by some VTK versions).
+//! - `Raw` (default): `format="appended"` with `<AppendedData
+//!   encoding="raw">_` followed by `header + bytes` per array, then a line
+//!   break before `</AppendedData>` (meshio cuts the data at the last line
+//!   break). Smallest and fastest; what ParaView's own writer produces by
+//!   default; not well-formed XML, so generic XML parsers cannot open it.
+//!
+//! No compression. Output is buffered internally in 64 KiB chunks (no
+//! `BufWriter` needed). Input is validated in full before the first byte.
+
+use crate::geom::Vec3;
+use crate::io::text_out::{CHUNK, flush_if_full, push_f64, push_i64, push_u64};
+use crate::io::write_error::WriteError;
+use crate::mesh::{TetMesh, TriMesh, VertexId};
+use base64::Engine;
+use base64::engine::general_purpose::STANDARD as B64;
+use serde::{Deserialize, Serialize};
+use std::borrow::Cow;
+use std::io::Write;
+
+/// How array values are stored.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum VtuEncoding {
+    /// Text values inside each `DataArray`.
+    Ascii,
+    /// Base64 binary inside each `DataArray` (`format="binary"`).
+    Base64,
+    /// Raw binary in one `<AppendedData>` block at the end (`format="appended"`).
+    #[default]
+    Raw,
+}
+
+/// Integer type of the byte-count header in front of each binary array.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Serialize, Deserialize)]
+pub enum VtuHeaderType {
+    /// 32-bit counts (arrays up to 4 GiB).
+    UInt32,
+    /// 64-bit counts (VTK ≥ 6 default).
+    #[default]
+    UInt64,
+}
+
+/// Options of [`write_vtu`].
+#[derive(Debug, Clone, Default, Serialize, Deserialize)]
+#[serde(deny_unknown_fields, default)]
+pub struct VtuOptions {
+    /// Value encoding. Default [`VtuEncoding::Raw`].
+    pub encoding: VtuEncoding,
+    /// Binary header integer type. Default [`VtuHeaderType::UInt64`].
+    pub header_type: VtuHeaderType,
+}
+
+/// A block of cells of one kind, indexing [`VtuMesh::points`].
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub enum CellBlock<'a> {
+    /// VTK_VERTEX (1).
+    Vertices(&'a [VertexId]),
+    /// VTK_LINE (3).
+    Lines(&'a [[VertexId; 2]]),
+    /// VTK_TRIANGLE (5).
+    Triangles(&'a [[VertexId; 3]]),
+    /// VTK_TETRA (10).
+    Tetrahedra(&'a [[VertexId; 4]]),
+}
+
+impl CellBlock<'_> {
+    /// Number of cells.
+    pub fn len(&self) -> usize {
+        match self {
+            Self::Vertices(c) => c.len(),
+            Self::Lines(c) => c.len(),
+            Self::Triangles(c) => c.len(),
+            Self::Tetrahedra(c) => c.len(),
+        }
+    }
+
+    /// Whether the block has no cell.
+    pub fn is_empty(&self) -> bool {
+        self.len() == 0
+    }
+
+    /// Points per cell.
+    pub fn n_points_per_cell(&self) -> usize {
+        match self {
+            Self::Vertices(_) => 1,
+            Self::Lines(_) => 2,
+            Self::Triangles(_) => 3,
+            Self::Tetrahedra(_) => 4,
+        }
+    }
+
+    /// VTK cell type code.
+    pub fn vtk_type(&self) -> u8 {
+        match self {
+            Self::Vertices(_) => 1,
+            Self::Lines(_) => 3,
+            Self::Triangles(_) => 5,
+            Self::Tetrahedra(_) => 10,
+        }
+    }
+
+    /// All point indices, cell after cell.
+    fn indices(&self) -> &[VertexId] {
+        match self {
+            Self::Vertices(c) => c,
+            Self::Lines(c) => c.as_flattened(),
+            Self::Triangles(c) => c.as_flattened(),
+            Self::Tetrahedra(c) => c.as_flattened(),
+        }
+    }
+}
+
+/// Values of a data array.
+#[derive(Debug, Clone, PartialEq)]
+pub enum DataValues<'a> {
+    /// `Float64`.
+    Float64(Cow<'a, [f64]>),
+    /// `Float32`.
+    Float32(Cow<'a, [f32]>),
+    /// `Int32`.
+    Int32(Cow<'a, [i32]>),
+    /// `Int64`.
+    Int64(Cow<'a, [i64]>),
+    /// `UInt8` (flags).
+    UInt8(Cow<'a, [u8]>),
+    /// `UInt32`.
+    UInt32(Cow<'a, [u32]>),
+}
+
+impl DataValues<'_> {
+    fn len(&self) -> usize {
+        match self {
+            Self::Float64(v) => v.len(),
+            Self::Float32(v) => v.len(),
+            Self::Int32(v) => v.len(),
+            Self::Int64(v) => v.len(),
+            Self::UInt8(v) => v.len(),
+            Self::UInt32(v) => v.len(),
+        }
+    }
+
+    fn vtk_name(&self) -> &'static str {
+        match self {
+            Self::Float64(_) => "Float64",
+            Self::Float32(_) => "Float32",
+            Self::Int32(_) => "Int32",
+            Self::Int64(_) => "Int64",
+            Self::UInt8(_) => "UInt8",
+            Self::UInt32(_) => "UInt32",
+        }
+    }
+}
+
+/// A named point or cell data array: `n_components` values per point or cell.
+#[derive(Debug, Clone, PartialEq)]
+pub struct DataArray<'a> {
+    /// Array name (XML-escaped on output).
+    pub name: String,
+    /// Components per tuple: 1 scalar, 3 vector, 4 quaternion, 9 tensor, …
+    pub n_components: usize,
+    /// Values, tuple after tuple.
+    pub values: DataValues<'a>,
+}
+
+impl<'a> DataArray<'a> {
+    /// A `Float64` array.
+    pub fn f64(
+        name: impl Into<String>,
+        n_components: usize,
+        values: impl Into<Cow<'a, [f64]>>,
+    ) -> Self {
+        Self {
+            name: name.into(),
+            n_components,
+            values: DataValues::Float64(values.into()),
+        }
+    }
+
+    /// A `Float64` array of 3-vectors (copied).
+    pub fn vectors(name: impl Into<String>, values: &[Vec3]) -> Self {
+        let flat: Vec<f64> = values.iter().flat_map(|v| [v.x, v.y, v.z]).collect();
+        Self::f64(name, 3, flat)
+    }
+
+    /// An `Int32` scalar array.
+    pub fn i32(name: impl Into<String>, values: impl Into<Cow<'a, [i32]>>) -> Self {
+        Self {
+            name: name.into(),
+            n_components: 1,
+            values: DataValues::Int32(values.into()),
+        }
+    }
+
+    /// A `UInt8` scalar array (flags).
+    pub fn u8(name: impl Into<String>, values: impl Into<Cow<'a, [u8]>>) -> Self {
+        Self {
+            name: name.into(),
+            n_components: 1,
+            values: DataValues::UInt8(values.into()),
+        }
+    }
+}
+
+/// What [`write_vtu`] writes: points, cell blocks and data, all borrowed
+/// where possible.
+#[derive(Debug, Clone, PartialEq, Default)]
+pub struct VtuMesh<'a> {
+    /// Point positions.
+    pub points: &'a [Vec3],
+    /// Cell blocks, written in this order.
+    pub cells: Vec<CellBlock<'a>>,
+    /// Arrays with one tuple per point.
+    pub point_data: Vec<DataArray<'a>>,
+    /// Arrays with one tuple per cell (all blocks, in block order).
+    pub cell_data: Vec<DataArray<'a>>,
+}
+
+impl<'a> VtuMesh<'a> {
+    /// The triangles of `mesh`, no data.
+    pub fn from_surface(mesh: &'a TriMesh) -> Self {
+        Self {
+            points: &mesh.positions,
+            cells: vec![CellBlock::Triangles(&mesh.triangles)],
+            ..Default::default()
+        }
+    }
+
+    /// The tetrahedra of `mesh`, no data.
+    pub fn from_volume(mesh: &'a TetMesh) -> Self {
+        Self {
+            points: &mesh.positions,
+            cells: vec![CellBlock::Tetrahedra(&mesh.tets)],
+            ..Default::default()
+        }
+    }
+
+    /// Total number of cells.
+    pub fn n_cells(&self) -> usize {
+        self.cells.iter().map(CellBlock::len).sum()
+    }
+
+    /// Indices in range, finite points, data lengths matching.
+    ///
+    /// # Errors
+    /// The first violation, naming the cell or array.
+    pub fn validate(&self) -> Result<(), WriteError> {
+        for (i, p) in self.points.iter().enumerate() {
+            if !p.iter().all(|c| c.is_finite()) {
+                return Err(WriteError::NonFiniteCoordinate {
+                    what: format!("point {i}"),
+                    x: p.x,
+                    y: p.y,
+                    z: p.z,
+                });
+            }
+        }
+        let n = self.points.len();
+        let mut first = 0;
+        for block in &self.cells {
+            let k = block.n_points_per_cell();
+            if let Some(pos) = block.indices().iter().position(|v| v.idx() >= n) {
+                return Err(WriteError::IndexOutOfRange {
+                    what: format!("cell {}", first + pos / k),
+                    index: u64::from(block.indices()[pos].0),
+                    n_points: n,
+                });
+            }
+            first += block.len();
+        }
+        for (arrays, count, what) in [
+            (&self.point_data, n, "point"),
+            (&self.cell_data, self.n_cells(), "cell"),
+        ] {
+            for a in arrays {
+                if a.n_components == 0 {
+                    return Err(WriteError::BadComponents {
+                        view: a.name.clone(),
+                        n_components: 0,
+                        allowed: "VTK arrays need at least 1",
+                    });
+                }
+                if a.values.len() != count * a.n_components {
+                    return Err(WriteError::LengthMismatch {
+                        what: format!("{what} data {:?}", a.name),
+                        expected: count * a.n_components,
+                        got: a.values.len(),
+                    });
+                }
+            }
+        }
+        Ok(())
+    }
+}
+
+/// Write `mesh` as a `.vtu` file.
+///
+/// # Errors
+/// A validation error (nothing written) or [`WriteError::Io`].
+pub fn write_vtu(w: impl Write, mesh: &VtuMesh<'_>, opts: &VtuOptions) -> Result<(), WriteError> {
+    mesh.validate()?;
+    let n_conn: usize = mesh.cells.iter().map(|b| b.indices().len()).sum();
+    let wide = mesh.points.len() > i32::MAX as usize || n_conn > i32::MAX as usize;
+    let mut arrays: Vec<(Source<'_>, String)> = Vec::new();
+    let mut xml = XmlOut::new(w, opts);
+    xml.text("<?xml version=\"1.0\"?>\n<VTKFile type=\"UnstructuredGrid\" version=\"1.0\" byte_order=\"LittleEndian\" header_type=\"");
+    xml.text(match opts.header_type {
+        VtuHeaderType::UInt32 => "UInt32",
+        VtuHeaderType::UInt64 => "UInt64",
+    });
+    xml.text(&format!(
+        "\">\n<UnstructuredGrid>\n<Piece NumberOfPoints=\"{}\" NumberOfCells=\"{}\">\n",
+        mesh.points.len(),
+        mesh.n_cells()
+    ));
+    for (tag, data) in [
+        ("PointData", &mesh.point_data),
+        ("CellData", &mesh.cell_data),
+    ] {
+        xml.text(&format!("<{tag}>\n"));
+        for a in data {
+            arrays.push((
+                Source::Values(&a.values),
+                attrs(&a.name, a.values.vtk_name(), a.n_components),
+            ));
+        }
+        xml.arrays(&mut arrays)?;
+        xml.text(&format!("</{tag}>\n"));
+    }
+    xml.text("<Points>\n");
+    arrays.push((Source::Points(mesh.points), attrs("Points", "Float64", 3)));
+    xml.arrays(&mut arrays)?;
+    xml.text("</Points>\n<Cells>\n");
+    let int = if wide { "Int64" } else { "Int32" };
+    arrays.push((
+        Source::Connectivity(&mesh.cells, wide),
+        attrs("connectivity", int, 1),
+    ));
+    arrays.push((Source::Offsets(&mesh.cells, wide), attrs("offsets", int, 1)));
+    arrays.push((Source::Types(&mesh.cells), attrs("types", "UInt8", 1)));
+    xml.arrays(&mut arrays)?;
+    xml.text("</Cells>\n</Piece>\n</UnstructuredGrid>\n");
+    xml.appended()?;
+    xml.text("</VTKFile>\n");
+    xml.finish()
+}
+
+/// `type="…" Name="…" NumberOfComponents="…"` with the name XML-escaped.
+fn attrs(name: &str, ty: &str, n_components: usize) -> String {
+    let mut esc = String::with_capacity(name.len());
+    for c in name.chars() {
+        match c {
+            '&' => esc.push_str("&amp;"),
+            '<' => esc.push_str("&lt;"),
+            '>' => esc.push_str("&gt;"),
+            '"' => esc.push_str("&quot;"),
+            '\n' => esc.push_str("&#10;"),
+            c => esc.push(c),
+        }
+    }
+    format!("type=\"{ty}\" Name=\"{esc}\" NumberOfComponents=\"{n_components}\"")
+}
+
+/// One array's values, produced on the fly (no full copy of big arrays).
+enum Source<'a> {
+    /// Point coordinates as Float64.
+    Points(&'a [Vec3]),
+    /// Concatenated cell indices; `true` = Int64.
+    Connectivity(&'a [CellBlock<'a>], bool),
+    /// End offset of each cell; `true` = Int64.
+    Offsets(&'a [CellBlock<'a>], bool),
+    /// VTK cell type per cell.
+    Types(&'a [CellBlock<'a>]),
+    /// A user array.
+    Values(&'a DataValues<'a>),
+}
+
+/// Value of one scalar for ASCII output.
+enum Scalar {
+    F(f64),
+    I(i64),
+    U(u64),
+}
+
+impl Source<'_> {
+    /// Size in bytes of the binary data.
+    fn n_bytes(&self) -> usize {
+        match self {
+            Self::Points(p) => 24 * p.len(),
+            Self::Connectivity(c, wide) => {
+                c.iter().map(|b| b.indices().len()).sum::<usize>() * if *wide { 8 } else { 4 }
+            }
+            Self::Offsets(c, wide) => {
+                c.iter().map(CellBlock::len).sum::<usize>() * if *wide { 8 } else { 4 }
+            }
+            Self::Types(c) => c.iter().map(CellBlock::len).sum(),
+            Self::Values(v) => match v {
+                DataValues::Float64(x) => 8 * x.len(),
+                DataValues::Float32(x) => 4 * x.len(),
+                DataValues::Int32(x) => 4 * x.len(),
+                DataValues::Int64(x) => 8 * x.len(),
+                DataValues::UInt8(x) => x.len(),
+                DataValues::UInt32(x) => 4 * x.len(),
+            },
+        }
+    }
+
+    /// Feed every scalar, in order, to `f`; `f` gets the little-endian bytes
+    /// and the value. Stops at the first error.
+    fn for_each<E>(&self, mut f: impl FnMut(&[u8], Scalar) -> Result<(), E>) -> Result<(), E> {
+        match self {
+            Self::Points(p) => {
+                for x in p.iter().flat_map(|v| [v.x, v.y, v.z]) {
+                    f(&x.to_le_bytes(), Scalar::F(x))?;
+                }
+            }
+            Self::Connectivity(cells, wide) => {
+                for v in cells.iter().flat_map(|b| b.indices()) {
+                    int(&mut f, i64::from(v.0), *wide)?;
+                }
+            }
+            Self::Offsets(cells, wide) => {
+                let mut end = 0i64;
+                for b in cells.iter() {
+                    let k = b.n_points_per_cell() as i64;
+                    for _ in 0..b.len() {
+                        end += k;
+                        int(&mut f, end, *wide)?;
+                    }
+                }
+            }
+            Self::Types(cells) => {
+                for b in cells.iter() {
+                    let t = b.vtk_type();
+                    for _ in 0..b.len() {
+                        f(&[t], Scalar::U(u64::from(t)))?;
+                    }
+                }
+            }
+            Self::Values(v) => match v {
+                DataValues::Float64(x) => x
+                    .iter()
+                    .try_for_each(|&x| f(&x.to_le_bytes(), Scalar::F(x)))?,
+                DataValues::Float32(x) => x
+                    .iter()
+                    .try_for_each(|&x| f(&x.to_le_bytes(), Scalar::F(f64::from(x))))?,
+                DataValues::Int32(x) => x
+                    .iter()
+                    .try_for_each(|&x| f(&x.to_le_bytes(), Scalar::I(i64::from(x))))?,
+                DataValues::Int64(x) => x
+                    .iter()
+                    .try_for_each(|&x| f(&x.to_le_bytes(), Scalar::I(x)))?,
+                DataValues::UInt8(x) => x
+                    .iter()
+                    .try_for_each(|&x| f(&[x], Scalar::U(u64::from(x))))?,
+                DataValues::UInt32(x) => x
+                    .iter()
+                    .try_for_each(|&x| f(&x.to_le_bytes(), Scalar::U(u64::from(x))))?,
+            },
+        }
+        Ok(())
+    }
+
+    /// Float32 values are written as text from their `f32` shortest form.
+    fn is_f32(&self) -> bool {
+        matches!(self, Self::Values(DataValues::Float32(_)))
+    }
+}
+
+/// An index as Int32 (validated to fit) or Int64.
+fn int<E>(f: &mut impl FnMut(&[u8], Scalar) -> Result<(), E>, x: i64, wide: bool) -> Result<(), E> {
+    if wide {
+        f(&x.to_le_bytes(), Scalar::I(x))
+    } else {
+        f(&(x as i32).to_le_bytes(), Scalar::I(x))
+    }
+}
+
+/// The output with its encoding state.
+struct XmlOut<'s, W: Write> {
+    w: W,
+    buf: Vec<u8>,
+    encoding: VtuEncoding,
+    header64: bool,
+    /// Raw encoding: arrays waiting for the appended block.
+    pending: Vec<Source<'s>>,
+    /// Raw encoding: offset of the next appended array.
+    offset: usize,
+}
+
+impl<'s, W: Write> XmlOut<'s, W> {
+    fn new(w: W, opts: &VtuOptions) -> Self {
+        Self {
+            w,
+            buf: Vec::with_capacity(CHUNK + 4096),
+            encoding: opts.encoding,
+            header64: opts.header_type == VtuHeaderType::UInt64,
+            pending: Vec::new(),
+            offset: 0,
+        }
+    }
+
+    fn text(&mut self, s: &str) {
+        self.buf.extend_from_slice(s.as_bytes());
+    }
+
+    fn header_bytes(&self, n: usize) -> Vec<u8> {
+        if self.header64 {
+            (n as u64).to_le_bytes().to_vec()
+        } else {
+            (n as u32).to_le_bytes().to_vec()
+        }
+    }
+
+    /// Write the `DataArray` elements of `arrays` (draining it).
+    fn arrays(&mut self, arrays: &mut Vec<(Source<'s>, String)>) -> Result<(), WriteError> {
+        for (src, attrs) in arrays.drain(..) {
+            let n = src.n_bytes();
+            if !self.header64 && n > u32::MAX as usize {
+                return Err(WriteError::TooLarge {
+                    what: "VTU array bytes with a UInt32 header",
+                    count: n,
+                    max: u64::from(u32::MAX),
+                });
+            }
+            match self.encoding {
+                VtuEncoding::Ascii => {
+                    self.text(&format!("<DataArray {attrs} format=\"ascii\">\n"));
+                    self.ascii_values(&src)?;
+                    self.text("</DataArray>\n");
+                }
+                VtuEncoding::Base64 => {
+                    self.text(&format!("<DataArray {attrs} format=\"binary\">\n"));
+                    let header = self.header_bytes(n);
+                    push_base64(&mut self.buf, &header)?;
+                    self.base64_values(&src)?;
+                    self.text("\n</DataArray>\n");
+                }
+                VtuEncoding::Raw => {
+                    self.text(&format!(
+                        "<DataArray {attrs} format=\"appended\" offset=\"{}\"/>\n",
+                        self.offset
+                    ));
+                    self.offset += n + if self.header64 { 8 } else { 4 };
+                    self.pending.push(src);
+                }
+            }
+            flush_if_full(&mut self.w, &mut self.buf, CHUNK)?;
+        }
+        Ok(())
+    }
+
+    /// Text values, six per line.
+    fn ascii_values(&mut self, src: &Source<'_>) -> Result<(), WriteError> {
+        let f32s = src.is_f32();
+        let (w, buf) = (&mut self.w, &mut self.buf);
+        let mut k = 0usize;
+        src.for_each(|_, s| -> std::io::Result<()> {
+            match s {
+                Scalar::F(x) if f32s => {
+                    buf.extend_from_slice(zmij::Buffer::new().format(x as f32).as_bytes())
+                }
+                Scalar::F(x) => push_f64(buf, x),
+                Scalar::I(x) => push_i64(buf, x),
+                Scalar::U(x) => push_u64(buf, x),
+            }
+            k += 1;
+            buf.push(if k % 6 == 0 { b'\n' } else { b' ' });
+            flush_if_full(w, buf, CHUNK)
+        })?;
+        if k % 6 != 0 {
+            self.buf.push(b'\n');
+        }
+        Ok(())
+    }
+
+    /// Base64 of the binary values, encoded in chunks of a multiple of 3 bytes
+    /// so the concatenation equals the encoding of the whole.
+    fn base64_values(&mut self, src: &Source<'_>) -> Result<(), WriteError> {
+        const RAW: usize = 3 * 16384;
+        let (w, buf) = (&mut self.w, &mut self.buf);
+        let mut raw: Vec<u8> = Vec::with_capacity(RAW + 8);
+        src.for_each(|bytes, _| -> std::io::Result<()> {
+            raw.extend_from_slice(bytes);
+            if raw.len() >= RAW {
+                let rest = raw.split_off(RAW);
+                push_base64(buf, &raw)?;
+                raw = rest;
+                flush_if_full(w, buf, CHUNK)?;
+            }
+            Ok(())
+        })?;
+        push_base64(&mut self.buf, &raw)?;
+        Ok(())
+    }
+
+    /// Raw encoding: the `<AppendedData>` block with every pending array.
+    fn appended(&mut self) -> Result<(), WriteError> {
+        if self.encoding != VtuEncoding::Raw {
+            return Ok(());
+        }
+        self.text("<AppendedData encoding=\"raw\">\n_");
+        for src in std::mem::take(&mut self.pending) {
+            let header = self.header_bytes(src.n_bytes());
+            self.buf.extend_from_slice(&header);
+            let (w, buf) = (&mut self.w, &mut self.buf);
+            src.for_each(|bytes, _| -> std::io::Result<()> {
+                buf.extend_from_slice(bytes);
+                flush_if_full(w, buf, CHUNK)
+            })?;
+        }
+        self.text("\n</AppendedData>\n");
+        Ok(())
+    }
+
+    fn finish(mut self) -> Result<(), WriteError> {
+        self.w.write_all(&self.buf)?;
+        self.w.flush()?;
+        Ok(())
+    }
+}
+
+/// Append the base64 encoding of `bytes` to `buf`.
+fn push_base64(buf: &mut Vec<u8>, bytes: &[u8]) -> std::io::Result<()> {
+    let start = buf.len();
+    let n = base64::encoded_len(bytes.len(), true)
+        .ok_or_else(|| std::io::Error::other("base64 length overflows usize"))?;
+    buf.resize(start + n, 0);
+    let written = B64
+        .encode_slice(bytes, &mut buf[start..])
+        .map_err(std::io::Error::other)?;
+    buf.truncate(start + written);
+    Ok(())
+}
+
+/// Write the triangles of `mesh` with default options (raw appended, UInt64 headers).
+///
+/// # Errors
+/// A validation error or [`WriteError::Io`].
+pub fn write_surface_vtu(w: impl Write, mesh: &TriMesh) -> Result<(), WriteError> {
+    write_vtu(w, &VtuMesh::from_surface(mesh), &VtuOptions::default())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::mesh::fixtures;
+
+    fn write(mesh: &VtuMesh<'_>, encoding: VtuEncoding, header_type: VtuHeaderType) -> Vec<u8> {
+        let mut v = Vec::new();
+        write_vtu(
+            &mut v,
+            mesh,
+            &VtuOptions {
+                encoding,
+                header_type,
+            },
+        )
+        .unwrap();
+        v
+    }
+
+    fn sample(m: &TriMesh) -> VtuMesh<'_> {
+        let mut mesh = VtuMesh::from_surface(m);
+        mesh.point_data
+            .push(DataArray::vectors("normal", &m.positions));
+        mesh.cell_data.push(DataArray::i32(
+            "patch",
+            (0..m.n_faces() as i32).collect::<Vec<_>>(),
+        ));
+        mesh
+    }
+
+    /// The text of the `DataArray` named `name`.
+    fn array_text<'a>(text: &'a str, name: &str) -> &'a str {
+        let start = text.find(&format!("Name=\"{name}\"")).unwrap();
+        let open = start + text[start..].find('>').unwrap() + 1;
+        let close = open + text[open..].find("</DataArray>").unwrap();
+        text[open..close].trim()
+    }
+
+    #[test]
+    fn ascii_has_counts_offsets_types_and_values() {
+        let m = fixtures::square(1);
+        let text = String::from_utf8(write(
+            &sample(&m),
+            VtuEncoding::Ascii,
+            VtuHeaderType::UInt64,
+        ))
+        .unwrap();
+        assert!(text.contains("NumberOfPoints=\"4\" NumberOfCells=\"2\""));
+        assert_eq!(
+            array_text(&text, "connectivity")
+                .split_whitespace()
+                .collect::<Vec<_>>(),
+            ["0", "1", "3", "0", "3", "2"]
+        );
+        assert_eq!(array_text(&text, "offsets"), "3 6");
+        assert_eq!(array_text(&text, "types"), "5 5");
+        assert_eq!(array_text(&text, "patch"), "0 1");
+        let pts: Vec<f64> = array_text(&text, "Points")
+            .split_whitespace()
+            .map(|s| s.parse().unwrap())
+            .collect();
+        assert_eq!(
+            pts,
+            m.positions
+                .iter()
+                .flat_map(|p| [p.x, p.y, p.z])
+                .collect::<Vec<_>>()
+        );
+        assert!(text.contains("type=\"Int32\" Name=\"connectivity\""));
+    }
+
+    #[test]
+    fn base64_decodes_to_header_and_bytes() {
+        let m = fixtures::square(1);
+        let text = String::from_utf8(write(
+            &sample(&m),
+            VtuEncoding::Base64,
+            VtuHeaderType::UInt32,
+        ))
+        .unwrap();
+        let s = array_text(&text, "types");
+        // Header (4 bytes → 8 chars with padding) encoded apart from the data.
+        let header = B64.decode(&s[..8]).unwrap();
+        assert_eq!(header, 2u32.to_le_bytes());
+        assert_eq!(B64.decode(&s[8..]).unwrap(), [5, 5]);
+        let p = array_text(&text, "Points");
+        assert_eq!(B64.decode(&p[..8]).unwrap(), 96u32.to_le_bytes());
+        let xyz: Vec<f64> = B64
+            .decode(&p[8..])
+            .unwrap()
+            .chunks_exact(8)
+            .map(|c| f64::from_le_bytes(c.try_into().unwrap()))
+            .collect();
+        assert_eq!(
+            xyz,
+            m.positions
+                .iter()
+                .flat_map(|p| [p.x, p.y, p.z])
+                .collect::<Vec<_>>()
+        );
+    }
+
+    #[test]
+    fn raw_appended_offsets_point_at_headers() {
+        let m = fixtures::square(2);
+        let bytes = write(&sample(&m), VtuEncoding::Raw, VtuHeaderType::UInt64);
+        let marker = b"<AppendedData encoding=\"raw\">\n_";
+        let start = bytes
+            .windows(marker.len())
+            .position(|w| w == marker)
+            .unwrap()
+            + marker.len();
+        let head = String::from_utf8_lossy(&bytes[..start]).into_owned();
+        let offsets: Vec<usize> = head
+            .match_indices("offset=\"")
+            .map(|(i, _)| head[i + 8..].split('"').next().unwrap().parse().unwrap())
+            .collect();
+        assert_eq!(offsets.len(), 6);
+        let expected_sizes = [24 * 9, 4 * 8, 24 * 9, 4 * 24, 4 * 8, 8];
+        for (o, n) in offsets.iter().zip(expected_sizes) {
+            let h = u64::from_le_bytes(bytes[start + o..start + o + 8].try_into().unwrap());
+            assert_eq!(h as usize, n);
+        }
+        assert!(bytes.ends_with(b"\n</AppendedData>\n</VTKFile>\n"));
+    }
+
+    #[test]
+    fn validation() {
+        let m = fixtures::square(1);
+        let mut mesh = sample(&m);
+        mesh.cell_data[0].values = DataValues::Int32(vec![1].into());
+        let mut v = Vec::new();
+        assert!(matches!(
+            write_vtu(&mut v, &mesh, &VtuOptions::default()),
+            Err(WriteError::LengthMismatch {
+                expected: 2,
+                got: 1,
+                ..
+            })
+        ));
+        let bad = [[VertexId(0), VertexId(7)]];
+        let mesh = VtuMesh {
+            points: &m.positions,
+            cells: vec![CellBlock::Lines(&bad)],
+            ..Default::default()
+        };
+        assert!(matches!(
+            write_vtu(&mut v, &mesh, &VtuOptions::default()),
+            Err(WriteError::IndexOutOfRange { index: 7, .. })
+        ));
+        assert!(v.is_empty());
+    }
+}
