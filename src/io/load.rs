@@ -249,14 +249,14 @@ struct TetStats {
 
 /// The tetrahedral mesh over the nodes the tets use, all positively oriented.
 fn tet_mesh(positions: &[crate::geom::Vec3], tets: &[[u32; 4]]) -> (TetMesh, TetStats) {
+    let mut used = vec![false; positions.len()];
+    tets.iter().flatten().for_each(|&v| used[v as usize] = true);
     let mut new_id = vec![u32::MAX; positions.len()];
     let mut vol = TetMesh::default();
-    for t in tets {
-        for &v in t {
-            if new_id[v as usize] == u32::MAX {
-                new_id[v as usize] = vol.positions.len() as u32;
-                vol.positions.push(positions[v as usize]);
-            }
+    for (v, p) in positions.iter().enumerate() {
+        if used[v] {
+            new_id[v] = vol.positions.len() as u32;
+            vol.positions.push(*p);
         }
     }
     let mut stats = TetStats::default();
