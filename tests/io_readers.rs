@@ -58,7 +58,7 @@ def write_all(model_fn, stem, expect, versions=("2.2", "4.1"), param_versions=("
     gmsh.option.setNumber("Mesh.SaveParametric", 0)
     for f in files:
         n, c = counts_of_file(f)
-        manifest.append(dict(file=f, writer="gmsh", nodes=n, elements=c, **expect))
+        manifest.append(dict(file=os.path.basename(f), writer="gmsh", nodes=n, elements=c, **expect))
 
 def sphere():
     gmsh.model.add("sphere")
@@ -122,7 +122,7 @@ def mio(mesh, name, fmt, expect, **kw):
     c = {}
     for block in mesh.cells:
         c[block.type] = c.get(block.type, 0) + len(block.data)
-    manifest.append(dict(file=f, writer="meshio", nodes=len(mesh.points), elements=c, **expect))
+    manifest.append(dict(file=os.path.basename(f), writer="meshio", nodes=len(mesh.points), elements=c, **expect))
 
 sph = dict(closed=True, genus=0, volume=0.0)
 flat = dict(closed=False, genus=0, volume=0.0)
@@ -154,23 +154,40 @@ struct Entry {
     volume: f64,
 }
 
-/// Run the generator once per test process; returns the manifest.
+/// The generated files, made once per machine: a directory named after a
+/// hash of the generator, filled under a private name and renamed into
+/// place (atomic, so concurrent test processes never see a partial set).
+/// Returns the manifest with paths made absolute.
 fn generated() -> &'static Vec<Entry> {
     static MANIFEST: OnceLock<Vec<Entry>> = OnceLock::new();
     MANIFEST.get_or_init(|| {
-        let dir = std::env::temp_dir().join(format!("meshatlas-io-readers-{}", std::process::id()));
-        std::fs::create_dir_all(&dir).unwrap();
-        let script = dir.join("generate.py");
-        std::fs::write(&script, GENERATOR).unwrap();
-        let out = std::process::Command::new("python3")
-            .arg(&script)
-            .arg(&dir)
-            .arg(gmsh_data_dir())
-            .output()
-            .expect("python3 must be installed (with gmsh and meshio)");
-        assert!(out.status.success(), "generator failed:\n{}", String::from_utf8_lossy(&out.stderr));
+        let key = GENERATOR.bytes().chain(gmsh_data_dir().to_string_lossy().bytes()).fold(0xcbf2_9ce4_8422_2325u64, |h, b| {
+            (h ^ u64::from(b)).wrapping_mul(0x100_0000_01b3)
+        });
+        let dir = std::env::temp_dir().join(format!("meshatlas-io-readers-{key:016x}"));
+        if !dir.join("manifest.json").is_file() {
+            let tmp = std::env::temp_dir().join(format!("meshatlas-io-readers-{key:016x}-{}", std::process::id()));
+            std::fs::create_dir_all(&tmp).unwrap();
+            let script = tmp.join("generate.py");
+            std::fs::write(&script, GENERATOR).unwrap();
+            let out = std::process::Command::new("python3")
+                .arg(&script)
+                .arg(&tmp)
+                .arg(gmsh_data_dir())
+                .output()
+                .expect("python3 must be installed (with gmsh and meshio)");
+            assert!(out.status.success(), "generator failed:\n{}", String::from_utf8_lossy(&out.stderr));
+            if std::fs::rename(&tmp, &dir).is_err() {
+                // Another process won the race: use its complete directory.
+                std::fs::remove_dir_all(&tmp).ok();
+            }
+        }
         let text = std::fs::read_to_string(dir.join("manifest.json")).unwrap();
-        serde_json::from_str(&text).unwrap()
+        let mut entries: Vec<Entry> = serde_json::from_str(&text).unwrap();
+        for e in &mut entries {
+            e.file = dir.join(&e.file);
+        }
+        entries
     })
 }
 
