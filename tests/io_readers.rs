@@ -58,7 +58,7 @@ def write_all(model_fn, stem, expect, versions=("2.2", "4.1"), param_versions=("
     gmsh.option.setNumber("Mesh.SaveParametric", 0)
     for f in files:
         n, c = counts_of_file(f)
-        manifest.append(dict(file=f, writer="gmsh", nodes=n, elements=c, **expect))
+        manifest.append(dict(file=os.path.basename(f), writer="gmsh", nodes=n, elements=c, **expect))
 
 def sphere():
     gmsh.model.add("sphere")
@@ -122,7 +122,7 @@ def mio(mesh, name, fmt, expect, **kw):
     c = {}
     for block in mesh.cells:
         c[block.type] = c.get(block.type, 0) + len(block.data)
-    manifest.append(dict(file=f, writer="meshio", nodes=len(mesh.points), elements=c, **expect))
+    manifest.append(dict(file=os.path.basename(f), writer="meshio", nodes=len(mesh.points), elements=c, **expect))
 
 sph = dict(closed=True, genus=0, volume=0.0)
 flat = dict(closed=False, genus=0, volume=0.0)
@@ -154,23 +154,40 @@ struct Entry {
     volume: f64,
 }
 
-/// Run the generator once per test process; returns the manifest.
+/// The generated files, made once per machine: a directory named after a
+/// hash of the generator, filled under a private name and renamed into
+/// place (atomic, so concurrent test processes never see a partial set).
+/// Returns the manifest with paths made absolute.
 fn generated() -> &'static Vec<Entry> {
     static MANIFEST: OnceLock<Vec<Entry>> = OnceLock::new();
     MANIFEST.get_or_init(|| {
-        let dir = std::env::temp_dir().join(format!("meshatlas-io-readers-{}", std::process::id()));
-        std::fs::create_dir_all(&dir).unwrap();
-        let script = dir.join("generate.py");
-        std::fs::write(&script, GENERATOR).unwrap();
-        let out = std::process::Command::new("python3")
-            .arg(&script)
-            .arg(&dir)
-            .arg(gmsh_data_dir())
-            .output()
-            .expect("python3 must be installed (with gmsh and meshio)");
-        assert!(out.status.success(), "generator failed:\n{}", String::from_utf8_lossy(&out.stderr));
+        let key = GENERATOR.bytes().chain(gmsh_data_dir().to_string_lossy().bytes()).fold(0xcbf2_9ce4_8422_2325u64, |h, b| {
+            (h ^ u64::from(b)).wrapping_mul(0x100_0000_01b3)
+        });
+        let dir = std::env::temp_dir().join(format!("meshatlas-io-readers-{key:016x}"));
+        if !dir.join("manifest.json").is_file() {
+            let tmp = std::env::temp_dir().join(format!("meshatlas-io-readers-{key:016x}-{}", std::process::id()));
+            std::fs::create_dir_all(&tmp).unwrap();
+            let script = tmp.join("generate.py");
+            std::fs::write(&script, GENERATOR).unwrap();
+            let out = std::process::Command::new("python3")
+                .arg(&script)
+                .arg(&tmp)
+                .arg(gmsh_data_dir())
+                .output()
+                .expect("python3 must be installed (with gmsh and meshio)");
+            assert!(out.status.success(), "generator failed:\n{}", String::from_utf8_lossy(&out.stderr));
+            if std::fs::rename(&tmp, &dir).is_err() {
+                // Another process won the race: use its complete directory.
+                std::fs::remove_dir_all(&tmp).ok();
+            }
+        }
         let text = std::fs::read_to_string(dir.join("manifest.json")).unwrap();
-        serde_json::from_str(&text).unwrap()
+        let mut entries: Vec<Entry> = serde_json::from_str(&text).unwrap();
+        for e in &mut entries {
+            e.file = dir.join(&e.file);
+        }
+        entries
     })
 }
 
@@ -311,6 +328,88 @@ fn gmsh_atlases_match_their_input_surfaces() {
         pa.sort_unstable();
         ps.sort_unstable();
         assert_eq!(pa, ps, "{atlas}");
+    }
+}
+
+/// Files written by this crate's writers read back to the same mesh.
+#[test]
+fn our_writers_round_trip() {
+    use meshatlas::io::msh41::model::MshModel;
+    use meshatlas::io::msh41::write::{Msh41Options, write_msh41};
+    use meshatlas::mesh::{TetMesh, VertexId};
+    let opts = LoadOptions::default();
+    let m = fixtures::torus(1.0, 0.3, 24, 12);
+    let load = |bytes: &[u8]| load_bytes(bytes, None, &opts).unwrap();
+
+    let mut b = Vec::new();
+    meshatlas::io::msh22::write::write_surface_msh22(&mut b, &m).unwrap();
+    assert!(load(&b).surface == m, "MSH 2.2");
+    for binary in [false, true] {
+        let mut b = Vec::new();
+        write_msh41(&mut b, &MshModel::from_surface(&m), &Msh41Options { binary }).unwrap();
+        assert!(load(&b).surface == m, "MSH 4.1 binary={binary}");
+    }
+    let mut b = Vec::new();
+    meshatlas::io::stl_write::write_stl_binary(&mut b, &m).unwrap();
+    let l = load(&b);
+    assert_eq!(l.format, Format::Stl);
+    // STL keeps no indices: same triangles corner by corner (in f32), same vertex count.
+    assert_eq!((l.surface.n_faces(), l.surface.n_vertices()), (m.n_faces(), m.n_vertices()));
+    for f in 0..m.n_faces() {
+        let f = meshatlas::mesh::FaceId::new(f);
+        let as_f32 = |c: [Vec3; 3]| c.map(|p| p.map(|x| x as f32));
+        assert!(as_f32(l.surface.corners(f)) == as_f32(m.corners(f)), "STL triangle {f}");
+    }
+
+    // A discrete atlas as the atlas stage writes it: entities, classified
+    // nodes, $Parametrizations and an $ElementData view.
+    {
+        use meshatlas::geom::Vec2;
+        use meshatlas::io::msh41::discrete::{DiscreteModelBuilder, PatchUv};
+        use meshatlas::io::msh41::model::DataView;
+        use meshatlas::mesh::FaceId;
+        let disk = fixtures::disk(4);
+        let ring: Vec<VertexId> =
+            (0..disk.n_vertices()).filter(|&v| (disk.positions[v].norm() - 1.0).abs() < 1e-12).map(VertexId::new).collect();
+        let mut b = DiscreteModelBuilder::new(&disk);
+        b.add_corner(ring[0]).unwrap();
+        let mut chain = ring.clone();
+        chain.push(ring[0]);
+        let curve = b.add_curve(chain).unwrap();
+        let vertices: Vec<VertexId> = (0..disk.n_vertices()).map(VertexId::new).collect();
+        let uv: Vec<Vec2> = vertices.iter().map(|v| disk.positions[v.idx()].xy()).collect();
+        let faces: Vec<FaceId> = (0..disk.n_faces()).map(FaceId::new).collect();
+        b.add_patch(faces, vec![curve], Some(PatchUv { vertices, uv, curvature: vec![] })).unwrap();
+        let mut model = b.build().unwrap();
+        model.element_data.push(DataView::contiguous("sigma", 1, vec![1.0; disk.n_faces()], 1));
+        for binary in [false, true] {
+            let mut out = Vec::new();
+            write_msh41(&mut out, &model, &Msh41Options { binary }).unwrap();
+            let l = load(&out);
+            let r = &l.repair;
+            assert_eq!((l.surface.n_faces(), l.surface.n_vertices()), (disk.n_faces(), disk.n_vertices()), "binary={binary}");
+            assert_eq!((r.n_boundary_loops, r.euler_characteristic, r.n_unreferenced_vertices_dropped), (1, 1, 0));
+            assert_eq!(r.skipped_elements.get("Line 2"), Some(&ring.len()), "{:?}", r.skipped_elements);
+        }
+    }
+
+    // A tet mesh of the unit cube (Kuhn: 6 positive tets around the diagonal).
+    let corners = [[0, 0, 0], [1, 0, 0], [1, 1, 0], [0, 1, 0], [0, 0, 1], [1, 0, 1], [1, 1, 1], [0, 1, 1]];
+    let tets = [[0, 1, 2, 6], [0, 2, 3, 6], [0, 3, 7, 6], [0, 7, 4, 6], [0, 4, 5, 6], [0, 5, 1, 6]];
+    let vol = TetMesh {
+        positions: corners.iter().map(|c| Vec3::new(c[0] as f64, c[1] as f64, c[2] as f64)).collect(),
+        tets: tets.iter().map(|t| t.map(VertexId)).collect(),
+    };
+    assert!(vol.validate().is_ok());
+    let mut b22 = Vec::new();
+    meshatlas::io::msh22::write::write_volume_msh22(&mut b22, &vol).unwrap();
+    let mut b41 = Vec::new();
+    write_msh41(&mut b41, &MshModel::from_volume(&vol), &Msh41Options { binary: true }).unwrap();
+    for b in [b22, b41] {
+        let l = load(&b);
+        assert!(l.volume.as_ref() == Some(&vol));
+        assert_eq!((l.surface.n_faces(), l.repair.genus, l.repair.closed), (12, Some(0), true));
+        assert!((l.surface.signed_volume() - 1.0).abs() < 1e-12);
     }
 }
 

@@ -83,7 +83,8 @@ pub struct LoadedMesh {
     /// The repaired surface: valid, consistently oriented per component,
     /// closed components outward.
     pub surface: TriMesh,
-    /// The tetrahedral mesh of an MSH file with tetrahedra, all positive.
+    /// The tetrahedral mesh of an MSH file with tetrahedra, all positive
+    /// (`None` when the file has none, or none of non-zero volume).
     pub volume: Option<TetMesh>,
     /// What reading and repair did.
     pub repair: RepairReport,
@@ -177,6 +178,11 @@ pub fn read_raw<R: BufRead>(reader: R, format: Format, total_len: Option<u64>, l
 /// [`IoError::NoTriangles`] when nothing is left to mesh.
 pub fn finish(raw: RawMesh, format: Format, opts: &LoadOptions) -> Result<LoadedMesh, IoError> {
     let n_nodes = raw.positions.len();
+    // The readers guarantee this; checked so that a reader bug is an error, not a panic.
+    let max_index = raw.triangles.iter().flatten().chain(raw.tets.iter().flatten()).max();
+    if let Some(&m) = max_index.filter(|&&m| m as usize >= n_nodes) {
+        return Err(IoError::InvalidMesh { format, detail: format!("index {m} with {n_nodes} vertices") });
+    }
     let mut used_by_tri = vec![false; n_nodes];
     let mut used_by_tet = vec![false; n_nodes];
     for t in &raw.triangles {
@@ -231,11 +237,11 @@ pub fn finish(raw: RawMesh, format: Format, opts: &LoadOptions) -> Result<Loaded
     report.skipped_elements = skipped;
     report.n_polygons_fan_triangulated = n_polygons_triangulated;
     report.surface_from_volume_boundary = from_boundary;
-    let volume = volume.map(|(vol, stats)| {
+    let volume = volume.and_then(|(vol, stats)| {
         report.n_tets = vol.n_tets();
         report.n_tets_reoriented = stats.n_reoriented;
         report.n_degenerate_tets_removed = stats.n_degenerate;
-        vol
+        (vol.n_tets() > 0).then_some(vol)
     });
     Ok(LoadedMesh { surface, volume, repair: report, format })
 }
@@ -249,14 +255,14 @@ struct TetStats {
 
 /// The tetrahedral mesh over the nodes the tets use, all positively oriented.
 fn tet_mesh(positions: &[crate::geom::Vec3], tets: &[[u32; 4]]) -> (TetMesh, TetStats) {
+    let mut used = vec![false; positions.len()];
+    tets.iter().flatten().for_each(|&v| used[v as usize] = true);
     let mut new_id = vec![u32::MAX; positions.len()];
     let mut vol = TetMesh::default();
-    for t in tets {
-        for &v in t {
-            if new_id[v as usize] == u32::MAX {
-                new_id[v as usize] = vol.positions.len() as u32;
-                vol.positions.push(positions[v as usize]);
-            }
+    for (v, p) in positions.iter().enumerate() {
+        if used[v] {
+            new_id[v] = vol.positions.len() as u32;
+            vol.positions.push(*p);
         }
     }
     let mut stats = TetStats::default();

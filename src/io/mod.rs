@@ -14,6 +14,9 @@
 //! parametric MSH 4.1, and leave welding to the repair step so that it can
 //! be counted. None of the crates measured does all of that
 //! (`/work/shared/DEPENDENCIES.md`). The shared plumbing is in [`source`].
+//!
+//! Writing: MSH 4.1 ([`msh41::write`]), MSH 2.2 ([`msh22::write`]), VTU
+//! ([`vtu`]) and binary STL ([`stl_write`]); errors are [`WriteError`].
 
 pub mod error;
 pub mod format;
@@ -25,15 +28,14 @@ pub mod obj;
 pub mod ply;
 pub mod source;
 pub mod stl;
+pub mod stl_write;
+pub(crate) mod text_out;
+pub mod vtu;
+pub mod write_error;
 
 pub use error::{IoError, Location};
 pub use format::Format;
 pub use load::{LoadOptions, LoadedMesh, load_bytes, load_path, load_reader};
 pub use source::{Limits, RawMesh};
-
-pub mod stl_write;
-pub(crate) mod text_out;
-pub mod vtu;
-pub mod write_error;
 
 pub use write_error::WriteError;

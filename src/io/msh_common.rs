@@ -511,5 +511,47 @@ mod tests {
         assert_eq!(e.kind(), "unsupported");
         let e = read("$MeshFormat\n2.2 1 8\n\x07\x00\x00\x00\n$EndMeshFormat\n".as_bytes(), &lim).unwrap_err();
         assert!(e.to_string().contains("byte-order marker"), "{e}");
+        let e = read("$MeshFormat\n2.2 0 8 9\n$EndMeshFormat\n".as_bytes(), &lim).unwrap_err();
+        assert!(e.to_string().contains("extra numbers"), "{e}");
+        let e = read("$MeshFormat\n2.2 2 8\n$EndMeshFormat\n".as_bytes(), &lim).unwrap_err();
+        assert!(e.to_string().contains("file type 2"), "{e}");
+        // Comments before the header are skipped.
+        let ok = "$Comments\nhello\n$EndComments\n$MeshFormat\n2.2 0 8\n$EndMeshFormat\n$Nodes\n3\n1 0 0 0\n2 1 0 0\n3 0 1 0\n$EndNodes\n$Elements\n1\n1 2 0 1 2 3\n$EndElements\n";
+        assert_eq!(read(ok.as_bytes(), &lim).unwrap().triangles, vec![[0, 1, 2]]);
+    }
+
+    #[test]
+    fn section_structure_errors() {
+        let lim = Limits::from_max_triangles(10);
+        for v in ["2.2", "4.1"] {
+            let head = format!("$MeshFormat\n{v} 0 8\n$EndMeshFormat\n");
+            let e = read(format!("{head}$Elements\n0\n$EndElements\n").as_bytes(), &lim).unwrap_err();
+            assert!(e.to_string().contains("before any `$Nodes`") && e.to_string().contains("line 4"), "{v}: {e}");
+            let e = read(format!("{head}garbage\n").as_bytes(), &lim).unwrap_err();
+            assert!(e.to_string().contains("expected a section") && e.to_string().contains("line 4"), "{v}: {e}");
+            let e = read(format!("{head}$MeshFormat\n").as_bytes(), &lim).unwrap_err();
+            assert!(e.to_string().contains("second `$MeshFormat`"), "{v}: {e}");
+            let e = read(format!("{head}$Unknown\n1 2 3\n").as_bytes(), &lim).unwrap_err();
+            assert!(e.kind() == "truncated" && e.to_string().contains("$EndUnknown"), "{v}: {e}");
+        }
+        // Binary 2.2: a block claiming more elements than announced, a negative node tag.
+        let mut b = b"$MeshFormat\n2.2 1 8\n".to_vec();
+        b.extend_from_slice(&1i32.to_le_bytes());
+        b.extend_from_slice(b"\n$EndMeshFormat\n$Nodes\n1\n");
+        b.extend_from_slice(&(-5i32).to_le_bytes());
+        b.extend_from_slice(&[0u8; 24]);
+        let e = read(&b[..], &lim).unwrap_err();
+        assert!(e.to_string().contains("negative node tag -5") && e.to_string().contains("byte offset 49"), "{e}");
+        let mut b = b"$MeshFormat\n2.2 1 8\n".to_vec();
+        b.extend_from_slice(&1i32.to_le_bytes());
+        b.extend_from_slice(b"\n$EndMeshFormat\n$Nodes\n1\n");
+        b.extend_from_slice(&5i32.to_le_bytes());
+        b.extend_from_slice(&[0u8; 24]);
+        b.extend_from_slice(b"\n$EndNodes\n$Elements\n1\n");
+        for x in [15i32, 2, 2] {
+            b.extend_from_slice(&x.to_le_bytes());
+        }
+        let e = read(&b[..], &lim).unwrap_err();
+        assert!(e.to_string().contains("block of 2 elements, but 1 of the 1"), "{e}");
     }
 }

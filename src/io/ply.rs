@@ -138,9 +138,10 @@ pub fn read<R: BufRead>(reader: R, total_len: Option<u64>, limits: &Limits) -> R
     let (encoding, elements) = read_header(&mut src)?;
     let mut sink = MeshSink::new(Format::Ply, *limits);
     let mut checker = IndexChecker::default();
+    // Check every declaration before reading data: header errors come first.
     let mut seen_vertex = false;
-    for el in &elements {
-        let role = role_of(&src, el, &mut seen_vertex)?;
+    let roles = elements.iter().map(|el| role_of(&src, el, &mut seen_vertex)).collect::<Result<Vec<Role>, IoError>>()?;
+    for (el, &role) in elements.iter().zip(&roles) {
         let remaining = total_len.map(|t| t.saturating_sub(src.offset()));
         match role {
             Role::Vertex(_) => sink.mesh.positions.reserve(capacity_hint(el.count, 3, remaining)),
@@ -581,6 +582,29 @@ mod tests {
         let e = read(bad.as_bytes(), None, &limits()).unwrap_err();
         assert_eq!(e.kind(), "truncated");
         assert!(e.to_string().contains("face 2 of 2"), "{e}");
+    }
+
+    #[test]
+    fn element_declaration_errors() {
+        let head = "ply\nformat ascii 1.0\nelement vertex 3\nproperty float x\nproperty float y\nproperty float z\n";
+        let e = read(format!("{head}element face 1\nproperty list uchar float vertex_indices\nend_header\n").as_bytes(), None, &limits())
+            .unwrap_err();
+        assert!(e.to_string().contains("integer type") && e.to_string().contains("line 7"), "{e}");
+        let e = read(format!("{head}element face 1\nproperty int flags\nend_header\n").as_bytes(), None, &limits()).unwrap_err();
+        assert!(e.to_string().contains("no `vertex_indices`"), "{e}");
+        let e = read(format!("{head}element vertex 1\nproperty float x\nend_header\n").as_bytes(), None, &limits()).unwrap_err();
+        assert!(e.to_string().contains("second `vertex`"), "{e}");
+        let e = read("ply\nelement vertex 1\nend_header\n".as_bytes(), None, &limits()).unwrap_err();
+        assert!(e.to_string().contains("no `format`"), "{e}");
+        let e = read("ply\nformat binary_middle_endian 1.0\n".as_bytes(), None, &limits()).unwrap_err();
+        assert!(e.to_string().contains("unknown PLY format"), "{e}");
+        let e = read("ply\nformat ascii 1.0\nproperty float x\n".as_bytes(), None, &limits()).unwrap_err();
+        assert!(e.to_string().contains("before any `element`"), "{e}");
+        let e = read("ply\nformat ascii 1.0\nelemnt vertex 1\n".as_bytes(), None, &limits()).unwrap_err();
+        assert!(e.to_string().contains("unknown header keyword `elemnt`"), "{e}");
+        // Faces before vertices are fine; indices are checked at the end.
+        let text = "ply\nformat ascii 1.0\nelement face 1\nproperty list uchar uint vertex_index\nelement vertex 3\nproperty float x\nproperty float y\nproperty float z\nend_header\n3 0 1 2\n0 0 0\n1 0 0\n0 1 0\n";
+        assert_eq!(read(text.as_bytes(), None, &limits()).unwrap().triangles, vec![[0, 1, 2]]);
     }
 
     #[test]

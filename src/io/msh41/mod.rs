@@ -1,7 +1,8 @@
-//! Gmsh MSH 4.1, ASCII and binary. Reading lives in [`read`] (see
-//! [`crate::io::msh_common`] for what the versions share); writing: the general model ([`model::MshModel`]), a builder for
-//! discrete atlases ([`discrete::DiscreteModelBuilder`]) and the writer
-//! ([`write::write_msh41`]; layout in [`write`]).
+//! Gmsh MSH 4.1: the general model ([`model::MshModel`]), a builder for
+//! discrete atlases ([`discrete::DiscreteModelBuilder`]), the writer
+//! ([`write::write_msh41`]; layout in [`write`]) and the reader ([`read`],
+//! ASCII and binary, parametric and partitioned files; shared reading code
+//! in [`crate::io::msh_common`]).
 //!
 //! # Writing an atlas that Gmsh remeshes
 //! ```
