@@ -45,7 +45,7 @@ pub enum MvcSolver {
 }
 
 /// Relative residual the iterative solver must reach.
-const KRYLOV_TOLERANCE: f64 = 1e-13;
+const KRYLOV_TOLERANCE: f64 = 1e-10;
 /// Iteration cap of the iterative solver before falling back to LU.
 const KRYLOV_MAX_ITERATIONS: usize = 200;
 

@@ -42,6 +42,10 @@ pub struct StageOutput {
     pub summary: serde_json::Value,
     /// Files written into the output directory.
     pub artifacts: Vec<String>,
+    /// Wall seconds spent writing those files (reported as the separate step
+    /// `<stage>.write`, so the stage's own time compares with other tools'
+    /// computation times).
+    pub write_seconds: f64,
 }
 
 /// Data a stage reads: the repaired input and the products of earlier
@@ -186,6 +190,10 @@ pub fn run_pipeline(
         let p = progress.stage(name, lo, lo + share);
         let _stage_span = tracing::info_span!("stage", name).entered();
         let out = timed(&mut timings, name, || run_stage(stage, params, &mut products, out_dir, &p))?;
+        if let Some(t) = timings.last_mut() {
+            t.seconds = (t.seconds - out.write_seconds).max(0.0);
+        }
+        timings.push(StepTiming { step: format!("{name}.write"), seconds: out.write_seconds });
         p.set(1.0);
         for file in &out.artifacts {
             artifacts.push(artifact_info(out_dir, file)?);

@@ -55,14 +55,16 @@ pub fn run_atlas(
         other => PipelineError::stage("atlas", "stage-failed", other.to_string()),
     })?;
     progress.check()?;
+    let write_start = std::time::Instant::now();
     let artifacts = vec![
         write_artifact(out_dir, "atlas.msh", |w| write_atlas_msh(&atlas, w))?,
         write_artifact(out_dir, "atlas.vtu", |w| write_atlas_vtu(&atlas, w))?,
         write_artifact(out_dir, "atlas_uv.vtu", |w| write_atlas_uv_vtu(&atlas, w))?,
     ];
+    let write_seconds = write_start.elapsed().as_secs_f64();
     let summary = serde_json::to_value(&atlas.report).map_err(|e| PipelineError::stage("atlas", "stage-failed", e.to_string()))?;
     products.features = Some(atlas.features);
-    Ok(StageOutput { summary, artifacts })
+    Ok(StageOutput { summary, artifacts, write_seconds })
 }
 
 /// Stage 2: the crossfield, aligned with boundary and feature edges
@@ -85,14 +87,16 @@ pub fn run_crossfield(
         other => PipelineError::stage("crossfield", "stage-failed", other.to_string()),
     })?;
     progress.check()?;
+    let write_start = std::time::Instant::now();
     let artifacts = vec![
         write_artifact(out_dir, "crossfield.vtu", |w| write_crossfield_vtu(&field, surface, w))?,
         write_artifact(out_dir, "singularities.json", |w| Ok(write_singularities_json(&field, w)?))?,
         write_artifact(out_dir, "crossfield.msh", |w| write_crossfield_msh(&field, surface, w))?,
     ];
+    let write_seconds = write_start.elapsed().as_secs_f64();
     let summary =
         serde_json::to_value(&field.report).map_err(|e| PipelineError::stage("crossfield", "stage-failed", e.to_string()))?;
-    Ok(StageOutput { summary, artifacts })
+    Ok(StageOutput { summary, artifacts, write_seconds })
 }
 
 /// Stage 3: the volume (the uploaded tetrahedra, or a mesh of the enclosed
@@ -114,11 +118,13 @@ pub fn run_frames(
         },
     )?;
     progress.check()?;
+    let write_start = std::time::Instant::now();
     let artifacts = vec![
         write_artifact(out_dir, "frames.vtu", |w| write_frames_vtu(&field, w))?,
         write_artifact(out_dir, "frames_singular.vtu", |w| write_singular_edges_vtu(&field, w))?,
     ];
+    let write_seconds = write_start.elapsed().as_secs_f64();
     let summary =
         serde_json::to_value(&field.report).map_err(|e| PipelineError::stage("frames", "stage-failed", e.to_string()))?;
-    Ok(StageOutput { summary, artifacts })
+    Ok(StageOutput { summary, artifacts, write_seconds })
 }
