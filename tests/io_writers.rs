@@ -16,44 +16,18 @@ use meshatlas::io::vtu::{
     CellBlock, DataArray, DataValues, VtuEncoding, VtuHeaderType, VtuMesh, VtuOptions, write_vtu,
 };
 use meshatlas::mesh::{FaceId, TetMesh, TriMesh, VertexId, fixtures};
+mod common;
+
+use common::{path_str, python};
 use serde_json::{Value, json};
 use std::path::{Path, PathBuf};
-use std::process::Command;
 
 // ---------------------------------------------------------------------------
 // Running Python
 
-/// Run `script` with `python3`, passing `args`; the script prints one JSON
-/// document on its last stdout line.
-fn python(script: &str, args: &[&str]) -> Value {
-    let prelude = "import sys, json\n\
-        try:\n    import numpy as np, meshio, gmsh\n\
-        except ImportError as e:\n    sys.stderr.write(f'missing Python module: {e}; run .ci/run to install the test tools\\n'); sys.exit(3)\n";
-    let out =
-        Command::new("python3").arg("-c").arg(format!("{prelude}{script}")).args(args).output().unwrap_or_else(|e| {
-            panic!("cannot run python3 ({e}); run .ci/run to install python3 with gmsh, meshio and vtk")
-        });
-    let stdout = String::from_utf8_lossy(&out.stdout);
-    let stderr = String::from_utf8_lossy(&out.stderr);
-    assert!(out.status.success(), "python3 failed ({}):\n{stderr}\n{stdout}", out.status);
-    let last = stdout
-        .lines()
-        .rev()
-        .find(|l| l.starts_with('{'))
-        .unwrap_or_else(|| panic!("no JSON from python:\n{stdout}\n{stderr}"));
-    serde_json::from_str(last).unwrap_or_else(|e| panic!("bad JSON from python ({e}): {last}"))
-}
-
 /// A fresh directory for one test's files.
 fn scratch(name: &str) -> PathBuf {
-    let dir = Path::new(env!("CARGO_TARGET_TMPDIR")).join("io_writers").join(name);
-    let _ = std::fs::remove_dir_all(&dir);
-    std::fs::create_dir_all(&dir).expect("create scratch dir");
-    dir
-}
-
-fn path_str(p: &Path) -> &str {
-    p.to_str().expect("utf-8 path")
+    common::scratch("io_writers", name)
 }
 
 fn floats(v: &Value) -> Vec<f64> {
