@@ -10,6 +10,11 @@
 //! `geom ← mesh ← fem ← stages ← pipeline ← jobs ← http ← main`,
 //! with `io`, `linalg` and `progress` used by the core.
 
+// Numeric kernels index several parallel arrays with one loop index.
+#![allow(clippy::needless_range_loop)]
+// `!(x > 0.0)` is used on purpose: it also rejects NaN.
+#![allow(clippy::neg_cmp_op_on_partial_ord)]
+
 pub mod geom;
 pub mod linalg;
 pub mod mesh;
