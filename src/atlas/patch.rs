@@ -117,15 +117,8 @@ impl PatchMesh {
     /// The first reason this patch cannot be parameterized, or `None`.
     pub fn defect(&self) -> Option<PatchDefect> {
         let topo = &self.topo;
-        if crate::mesh::components::connected_components(topo).n_components != 1 {
-            return Some(PatchDefect::Disconnected);
-        }
-        if topo.n_nonmanifold_edges() > 0 || !nonmanifold_vertices(&self.mesh, topo).is_empty() {
-            return Some(PatchDefect::NonManifold);
-        }
-        if n_inconsistent_edges(&self.mesh, topo) > 0 {
-            return Some(PatchDefect::NotOrientable);
-        }
+        // Cheapest checks first: a closed face (no boundary edge) is the
+        // common case for the first generation and needs no further pass.
         let mut boundary_degree = vec![0u32; self.mesh.n_vertices()];
         let mut n_boundary_edges = 0;
         for e in 0..topo.n_edges() {
@@ -136,15 +129,26 @@ impl PatchMesh {
                 }
             }
         }
+        if topo.n_nonmanifold_edges() > 0 {
+            return Some(PatchDefect::NonManifold);
+        }
         if n_boundary_edges == 0 {
             return Some(PatchDefect::Closed);
+        }
+        if crate::mesh::components::connected_components(topo).n_components != 1 {
+            return Some(PatchDefect::Disconnected);
+        }
+        if !nonmanifold_vertices(&self.mesh, topo).is_empty() {
+            return Some(PatchDefect::NonManifold);
+        }
+        if n_inconsistent_edges(&self.mesh, topo) > 0 {
+            return Some(PatchDefect::NotOrientable);
         }
         if boundary_degree.iter().any(|&d| d != 0 && d != 2) {
             return Some(PatchDefect::PinchedBoundary);
         }
         let loops = boundary_loops(&self.mesh, topo).len() as i64;
-        let chi =
-            self.mesh.n_vertices() as i64 - topo.n_edges() as i64 + self.mesh.n_faces() as i64;
+        let chi = self.mesh.n_vertices() as i64 - topo.n_edges() as i64 + self.mesh.n_faces() as i64;
         if chi != 2 - loops {
             return Some(PatchDefect::Genus);
         }
