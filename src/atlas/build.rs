@@ -192,35 +192,37 @@ fn process_patch(
     let start = Instant::now();
     let n_original = patch.mesh.n_vertices();
     let interior_fraction = patch.n_interior_vertices() as f64 / n_original as f64;
-    let (work, source_local_face, n_bisections) =
-        if interior_fraction < opts.refine_below_interior_fraction && !is_planar(&patch.mesh) {
-            let target = mean_boundary_edge_length(&patch);
-            let r = bisect_inner_edges(
-                &patch.mesh,
-                target,
-                opts.refine_max_passes,
-                refined_size_cap(patch.n_faces(), opts),
-            );
-            let refined = PatchMesh {
-                global_vertices: patch.global_vertices.clone(),
-                global_faces: Vec::new(),
-                topo: Topology::new(&r.mesh),
-                mesh: r.mesh,
-            };
-            (refined, r.source_face, r.n_bisections)
-        } else {
-            let n = patch.n_faces() as u32;
-            (patch.clone(), (0..n).collect(), 0)
+    // The refined copy when the patch is too coarse; otherwise the patch
+    // itself is parameterized (no copy: a patch is ~50 bytes per triangle).
+    let refined = (interior_fraction < opts.refine_below_interior_fraction
+        && !is_planar(&patch.mesh))
+    .then(|| {
+        let target = mean_boundary_edge_length(&patch);
+        let r = bisect_inner_edges(
+            &patch.mesh,
+            target,
+            opts.refine_max_passes,
+            refined_size_cap(patch.n_faces(), opts),
+        );
+        let mesh = PatchMesh {
+            global_vertices: Vec::new(),
+            global_faces: Vec::new(),
+            topo: Topology::new(&r.mesh),
+            mesh: r.mesh,
         };
+        (mesh, r.source_face, r.n_bisections)
+    });
+    let work = refined.as_ref().map_or(&patch, |r| &r.0);
+    let n_bisections = refined.as_ref().map_or(0, |r| r.2);
     let loops = work.loops_longest_first();
     let mut param =
-        mean_value_parameterization(&work, &loops, opts.max_hole_fill_vertices, opts.solver)?;
-    let mut check = check_map(&work, &param.uv, opts.min_relative_uv_area);
+        mean_value_parameterization(work, &loops, opts.max_hole_fill_vertices, opts.solver)?;
+    let mut check = check_map(work, &param.uv, opts.min_relative_uv_area);
     if !check.is_valid() && param.solver != MvcSolver::Lu {
         // An iterative solution may miss a tiny triangle that the exact solution gets right.
         param =
-            mean_value_parameterization(&work, &loops, opts.max_hole_fill_vertices, MvcSolver::Lu)?;
-        check = check_map(&work, &param.uv, opts.min_relative_uv_area);
+            mean_value_parameterization(work, &loops, opts.max_hole_fill_vertices, MvcSolver::Lu)?;
+        check = check_map(work, &param.uv, opts.min_relative_uv_area);
     }
     if !check.is_valid() {
         if depth >= opts.max_split_depth || patch.n_faces() < 2 {
@@ -244,13 +246,13 @@ fn process_patch(
             depth: depth + 1,
         });
     }
-    let distortion = area_distortion(&work, &param.uv);
+    let distortion = area_distortion(work, &param.uv);
     if distortion > opts.max_area_distortion && depth < opts.max_split_depth && patch.n_faces() >= 2 {
         // One-to-one but too compressed somewhere for a mesh generator: split.
         let pieces = split_patch(&patch)?;
         return Ok(Outcome::Split { pieces, reason: SplitReason::Distortion, depth: depth + 1 });
     }
-    let sigma = sigma_ratios(&work, &param.uv);
+    let sigma = sigma_ratios(work, &param.uv);
     let (sigma_min, sigma_median) = min_and_median(&sigma);
     let input_vertex = (0..work.mesh.n_vertices())
         .map(|v| (v < n_original).then(|| patch.global_vertices[v]))
@@ -266,7 +268,7 @@ fn process_patch(
         n_bisections,
         sigma_ratio_min: sigma_min,
         sigma_ratio_median: sigma_median,
-        sigma_ratio_jump_median: sigma_jump_median(&work, &sigma),
+        sigma_ratio_jump_median: sigma_jump_median(work, &sigma),
         min_relative_uv_area: check.min_relative_area,
         area_distortion: distortion,
         n_map_splits: depth,
@@ -274,10 +276,14 @@ fn process_patch(
         krylov_iterations: param.iterations,
         solve_seconds: start.elapsed().as_secs_f64(),
     };
+    let (mesh, source_local_face) = match refined {
+        Some((r, source, _)) => (r.mesh, source),
+        None => (patch.mesh, (0..faces.len() as u32).collect()),
+    };
     Ok(Outcome::Done(Box::new(DonePatch {
         input_faces: faces,
         input_vertex,
-        mesh: work.mesh,
+        mesh,
         source_local_face,
         uv: param.uv,
         sigma,

@@ -27,7 +27,7 @@
 use super::error::AtlasError;
 use super::patch::PatchMesh;
 use crate::geom::{Vec2, Vec3};
-use crate::linalg::{CholeskySolver, LuSolver, Triplets, bicgstab_block};
+use crate::linalg::{LuSolver, SupernodalCholesky, Triplets, bicgstab_block};
 use crate::mesh::VertexId;
 use crate::mesh::boundary::BoundaryLoop;
 use serde::{Deserialize, Serialize};
@@ -141,8 +141,10 @@ pub fn mean_value_parameterization(
     for (h, hole) in filled.iter().enumerate() {
         add_virtual_fill(&mut system, pos, &hole.vertices, &unknown_of, n_unknowns + h);
     }
+    // The per-edge weights are not needed any more (memory peaks in the solve).
+    drop((lam_lo_hi, lam_hi_lo));
     let (a, s, mut rhs) = system.finish()?;
-    let (used, iterations) = solve(&a, &s, &mut rhs, solver)?;
+    let (used, iterations) = solve(&a, s, &mut rhs, solver)?;
     for v in 0..n_v {
         let r = unknown_of[v];
         if r != usize::MAX {
@@ -163,33 +165,31 @@ pub fn mean_value_parameterization(
 /// returns the solver used and the iteration counts.
 fn solve(
     a: &crate::linalg::SparseMatrix,
-    s: &crate::linalg::SparseMatrix,
+    s: crate::linalg::SparseMatrix,
     rhs: &mut [Vec<f64>],
     solver: MvcSolver,
 ) -> Result<(MvcSolver, [usize; 2]), AtlasError> {
     if solver == MvcSolver::Bicgstab
-        && let Ok(chol) = CholeskySolver::new(s)
+        && let Ok(chol) = SupernodalCholesky::analyze(&s).and_then(|mut c| c.factor(&s).map(|()| c))
     {
+        // `S` only serves the factorization: free it before the Krylov vectors.
+        drop(s);
         let precond = |cols: &mut [Vec<f64>]| {
+            // Both columns in one pass over the factor.
+            let mut x: Vec<[f64; 2]> = cols[0].iter().zip(&cols[1]).map(|(&u, &v)| [u, v]).collect();
             // Lengths always match the factored matrix here.
-            let _ = chol.solve_columns(cols);
+            let _ = chol.solve_interleaved(&mut x);
+            for (i, [u, v]) in x.into_iter().enumerate() {
+                cols[0][i] = u;
+                cols[1][i] = v;
+            }
         };
         let mut x = rhs.to_vec();
         precond(&mut x);
-        let reps = bicgstab_block(
-            a,
-            &precond,
-            rhs,
-            &mut x,
-            KRYLOV_TOLERANCE,
-            KRYLOV_MAX_ITERATIONS,
-        );
+        let reps = bicgstab_block(a, &precond, rhs, &mut x, KRYLOV_TOLERANCE, KRYLOV_MAX_ITERATIONS);
         if reps.iter().all(|r| r.converged) {
             rhs.clone_from_slice(&x);
-            return Ok((
-                MvcSolver::Bicgstab,
-                [reps[0].iterations, reps[1].iterations],
-            ));
+            return Ok((solver, [reps[0].iterations, reps[1].iterations]));
         }
     }
     LuSolver::new(a)?.solve_columns(rhs)?;

@@ -16,6 +16,7 @@ pub mod error;
 pub mod krylov;
 pub mod solvers;
 pub mod supernodal;
+pub mod trisolve;
 
 pub use assembly::{Pattern, Triplets};
 pub use error::LinalgError;
