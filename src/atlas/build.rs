@@ -22,6 +22,7 @@ use super::report::{AtlasReport, PatchReport, SplitCounts, SplitReason};
 use super::verify::{area_distortion, check_map, min_and_median, sigma_ratios};
 use crate::geom::Vec2;
 use crate::mesh::{EdgeId, FaceId, Topology, TriMesh, VertexId};
+use crate::mesh::components::nonmanifold_vertices;
 use crate::progress::Progress;
 use rayon::prelude::*;
 use std::time::Instant;
@@ -116,6 +117,9 @@ pub fn build_atlas(
     let topo = Topology::new(mesh);
     let features = detect_features(mesh, &topo, opts.feature_angle_deg);
     let faces_of_model_face = model_faces(&topo, &features).faces_per_component();
+    // Without a non-manifold vertex in the input, a patch can only be
+    // pinched at its boundary ([`PatchMesh::defect_of_manifold_piece`]).
+    let manifold_input = nonmanifold_vertices(mesh, &topo).is_empty();
     let n_model_faces = faces_of_model_face.len();
     let t_features = t0.elapsed().as_secs_f64();
     progress.set(0.05);
@@ -131,7 +135,7 @@ pub fn build_atlas(
         progress.check()?;
         let outcomes: Vec<Result<Outcome, AtlasError>> = pending
             .into_par_iter()
-            .map(|(faces, depth)| process_patch(mesh, faces, depth, opts, progress))
+            .map(|(faces, depth)| process_patch(mesh, faces, depth, manifold_input, opts, progress))
             .collect();
         pending = Vec::new();
         for o in outcomes {
@@ -175,12 +179,17 @@ fn process_patch(
     mesh: &TriMesh,
     faces: Vec<FaceId>,
     depth: usize,
+    manifold_input: bool,
     opts: &AtlasOptions,
     progress: &Progress,
 ) -> Result<Outcome, AtlasError> {
     progress.check()?;
     let patch = PatchMesh::extract(mesh, &faces);
-    let defect = patch.defect();
+    let defect = if manifold_input {
+        patch.defect_of_manifold_piece()
+    } else {
+        patch.defect()
+    };
     if defect.is_some() || patch.n_faces() > opts.max_patch_triangles {
         let pieces = split_patch(&patch)?;
         return Ok(Outcome::Split {

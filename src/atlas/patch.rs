@@ -9,7 +9,7 @@
 //! two boundary edges), so that the outer loop can be laid on the unit circle.
 
 use crate::mesh::boundary::{BoundaryLoop, boundary_loops};
-use crate::mesh::components::nonmanifold_vertices;
+use crate::mesh::components::{any_nonmanifold_vertex, nonmanifold_vertices};
 use crate::mesh::orientation::n_inconsistent_edges;
 use crate::mesh::{EdgeId, FaceId, Topology, TriMesh, VertexId};
 use serde::Serialize;
@@ -116,6 +116,22 @@ impl PatchMesh {
 
     /// The first reason this patch cannot be parameterized, or `None`.
     pub fn defect(&self) -> Option<PatchDefect> {
+        self.defect_with(false)
+    }
+
+    /// As [`Self::defect`], for a piece of a surface known to have no
+    /// non-manifold vertex. A vertex without boundary edges in the piece
+    /// has all the triangles of its (single) fan in the piece, so only
+    /// boundary vertices can be pinched and only they are checked: the full
+    /// check visits every fan, and repeated at every split level it was
+    /// 7.7 % of a 1M-triangle atlas.
+    pub fn defect_of_manifold_piece(&self) -> Option<PatchDefect> {
+        self.defect_with(true)
+    }
+
+    /// The checks of [`Self::defect`]; `boundary_fans_only` restricts the
+    /// non-manifold vertex test to boundary vertices.
+    fn defect_with(&self, boundary_fans_only: bool) -> Option<PatchDefect> {
         let topo = &self.topo;
         // Cheapest checks first: a closed face (no boundary edge) is the
         // common case for the first generation and needs no further pass.
@@ -138,7 +154,13 @@ impl PatchMesh {
         if crate::mesh::components::connected_components(topo).n_components != 1 {
             return Some(PatchDefect::Disconnected);
         }
-        if !nonmanifold_vertices(&self.mesh, topo).is_empty() {
+        let pinched = if boundary_fans_only {
+            let on_boundary = (0..self.mesh.n_vertices()).filter(|&v| boundary_degree[v] > 0);
+            any_nonmanifold_vertex(&self.mesh, topo, on_boundary.map(VertexId::new))
+        } else {
+            !nonmanifold_vertices(&self.mesh, topo).is_empty()
+        };
+        if pinched {
             return Some(PatchDefect::NonManifold);
         }
         if n_inconsistent_edges(&self.mesh, topo) > 0 {
@@ -228,6 +250,7 @@ mod tests {
             .collect();
         let p = PatchMesh::extract(&m, &faces);
         assert_eq!(p.defect(), Some(PatchDefect::NonManifold));
+        assert_eq!(p.defect_of_manifold_piece(), Some(PatchDefect::NonManifold));
         assert_eq!(p.n_interior_vertices(), 0);
     }
 }

@@ -141,6 +141,18 @@ pub fn nonmanifold_vertices(mesh: &TriMesh, topo: &Topology) -> Vec<VertexId> {
         .collect()
 }
 
+/// True when one of `candidates` has more than one fan of triangles.
+pub fn any_nonmanifold_vertex(
+    mesh: &TriMesh,
+    topo: &Topology,
+    candidates: impl IntoIterator<Item = VertexId>,
+) -> bool {
+    let mut parent = Vec::new();
+    candidates
+        .into_iter()
+        .any(|v| count_fans(mesh, topo, v, &mut parent) > 1)
+}
+
 /// Number of fans of the triangles around `v`: a union–find over the
 /// triangles of the one-ring, in the reusable buffer `parent` (no allocation
 /// per vertex once the buffer has grown to the largest valence). `vertex_faces`

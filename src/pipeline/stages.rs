@@ -56,11 +56,18 @@ pub fn run_atlas(
     })?;
     progress.check()?;
     let write_start = std::time::Instant::now();
-    let artifacts = vec![
-        write_artifact(out_dir, "atlas.msh", |w| write_atlas_msh(&atlas, w))?,
-        write_artifact(out_dir, "atlas.vtu", |w| write_atlas_vtu(&atlas, w))?,
-        write_artifact(out_dir, "atlas_uv.vtu", |w| write_atlas_uv_vtu(&atlas, w))?,
-    ];
+    // The MSH file (with the parametrizations) takes as long as both VTU
+    // files together: write it beside them on the pool.
+    let (msh, (vtu, uv)) = rayon::join(
+        || write_artifact(out_dir, "atlas.msh", |w| write_atlas_msh(&atlas, w)),
+        || {
+            rayon::join(
+                || write_artifact(out_dir, "atlas.vtu", |w| write_atlas_vtu(&atlas, w)),
+                || write_artifact(out_dir, "atlas_uv.vtu", |w| write_atlas_uv_vtu(&atlas, w)),
+            )
+        },
+    );
+    let artifacts = vec![msh?, vtu?, uv?];
     let write_seconds = write_start.elapsed().as_secs_f64();
     let summary = serde_json::to_value(&atlas.report).map_err(|e| PipelineError::stage("atlas", "stage-failed", e.to_string()))?;
     products.features = Some(atlas.features);
