@@ -3,8 +3,8 @@
 use super::build::Atlas;
 use super::mvc::MvcSolver;
 use super::patch::PatchDefect;
-use crate::mesh::summary::topology_summary;
-use crate::mesh::{Topology, TriMesh};
+use crate::mesh::TriMesh;
+use crate::mesh::summary::TopologySummary;
 use serde::Serialize;
 
 /// Summary numbers of one patch.
@@ -144,7 +144,7 @@ impl AtlasReport {
     /// Summarize a finished atlas.
     pub fn new(
         input: &TriMesh,
-        input_topo: &Topology,
+        summary: &TopologySummary,
         atlas: &Atlas,
         n_model_faces: usize,
         splits: SplitCounts,
@@ -153,7 +153,6 @@ impl AtlasReport {
         let patches: Vec<PatchReport> = atlas.patches.iter().map(|p| p.report.clone()).collect();
         let mut medians: Vec<f64> = patches.iter().map(|p| p.sigma_ratio_median).collect();
         medians.sort_by(f64::total_cmp);
-        let summary = topology_summary(input, input_topo);
         AtlasReport {
             n_input_triangles: input.n_faces(),
             n_triangles: atlas.mesh.n_faces(),
