@@ -115,9 +115,14 @@ pub fn build_atlas(
     }
     let t0 = Instant::now();
     let topo = Topology::new(mesh);
-    let features = detect_features(mesh, &topo, opts.feature_angle_deg);
-    let faces_of_model_face = model_faces(&topo, &features).faces_per_component();
-    let summary = topology_summary(mesh, &topo);
+    let ((features, faces_of_model_face), summary) = rayon::join(
+        || {
+            let features = detect_features(mesh, &topo, opts.feature_angle_deg);
+            let faces = model_faces(&topo, &features).faces_per_component();
+            (features, faces)
+        },
+        || topology_summary(mesh, &topo),
+    );
     // Without a non-manifold vertex in the input, a patch can only be
     // pinched at its boundary ([`PatchMesh::defect_of_manifold_piece`]).
     let manifold_input = summary.n_nonmanifold_vertices == 0;
