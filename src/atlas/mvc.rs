@@ -27,7 +27,7 @@
 use super::error::AtlasError;
 use super::patch::PatchMesh;
 use crate::geom::{Vec2, Vec3};
-use crate::linalg::{LuSolver, SupernodalCholesky, Triplets, bicgstab_block};
+use crate::linalg::{LinalgError, LuSolver, SupernodalCholesky, Triplets, bicgstab_block};
 use crate::mesh::VertexId;
 use crate::mesh::boundary::BoundaryLoop;
 use serde::{Deserialize, Serialize};
@@ -76,6 +76,27 @@ pub fn mean_value_parameterization(
     max_fill_vertices: usize,
     solver: MvcSolver,
 ) -> Result<PatchParameterization, AtlasError> {
+    let never = |_: &[Vec2]| false;
+    mean_value_parameterization_unless(patch, loops, max_fill_vertices, solver, &never)?
+        .ok_or_else(|| AtlasError::Linalg(LinalgError::Internal("mean value solve abandoned".into())))
+}
+
+/// As [`mean_value_parameterization`], but with BiCGSTAB the first
+/// approximation (the map of the symmetrized weights, `S⁻¹ b`, the
+/// Krylov method's starting point, so it costs nothing extra) is shown
+/// to `give_up` first; when it returns true the solve stops and `None` is
+/// returned. Why: a patch whose map will be rejected anyway (e.g. a tube
+/// whose far end is compressed 10⁵×) need not be solved to 10⁻¹⁰.
+///
+/// # Errors
+/// [`AtlasError::Linalg`] when the system cannot be factored.
+pub fn mean_value_parameterization_unless(
+    patch: &PatchMesh,
+    loops: &[BoundaryLoop],
+    max_fill_vertices: usize,
+    solver: MvcSolver,
+    give_up: &dyn Fn(&[Vec2]) -> bool,
+) -> Result<Option<PatchParameterization>, AtlasError> {
     let n_v = patch.mesh.n_vertices();
     let outer = &loops[0];
     let mut uv = vec![Vec2::zeros(); n_v];
@@ -144,31 +165,43 @@ pub fn mean_value_parameterization(
     // The per-edge weights are not needed any more (memory peaks in the solve).
     drop((lam_lo_hi, lam_hi_lo));
     let (a, s, mut rhs) = system.finish()?;
-    let (used, iterations) = solve(&a, s, &mut rhs, solver)?;
-    for v in 0..n_v {
-        let r = unknown_of[v];
-        if r != usize::MAX {
-            uv[v] = Vec2::new(rhs[0][r], rhs[1][r]);
+    let fill = |uv: &mut [Vec2], x: &[Vec<f64>]| {
+        for v in 0..n_v {
+            let r = unknown_of[v];
+            if r != usize::MAX {
+                uv[v] = Vec2::new(x[0][r], x[1][r]);
+            }
         }
-    }
-    Ok(PatchParameterization {
+    };
+    let preview = |x: &[Vec<f64>]| {
+        let mut first = uv.clone();
+        fill(&mut first, x);
+        give_up(&first)
+    };
+    let Some((used, iterations)) = solve(&a, s, &mut rhs, solver, &preview)? else {
+        return Ok(None);
+    };
+    fill(&mut uv, &rhs);
+    Ok(Some(PatchParameterization {
         uv,
         n_holes_filled: n_centres,
         n_holes_neumann: loops.len() - 1 - n_centres,
         n_unknowns: n,
         solver: used,
         iterations,
-    })
+    }))
 }
 
 /// Solve `A x = b` for both columns of `rhs` in place with the chosen solver;
-/// returns the solver used and the iteration counts.
+/// returns the solver used and the iteration counts, or `None` when
+/// `give_up` rejects BiCGSTAB's starting point.
 fn solve(
     a: &crate::linalg::SparseMatrix,
     s: crate::linalg::SparseMatrix,
     rhs: &mut [Vec<f64>],
     solver: MvcSolver,
-) -> Result<(MvcSolver, [usize; 2]), AtlasError> {
+    give_up: &dyn Fn(&[Vec<f64>]) -> bool,
+) -> Result<Option<(MvcSolver, [usize; 2])>, AtlasError> {
     if solver == MvcSolver::Bicgstab
         && let Ok(chol) = SupernodalCholesky::analyze(&s).and_then(|mut c| c.factor(&s).map(|()| c))
     {
@@ -186,14 +219,17 @@ fn solve(
         };
         let mut x = rhs.to_vec();
         precond(&mut x);
+        if give_up(&x) {
+            return Ok(None);
+        }
         let reps = bicgstab_block(a, &precond, rhs, &mut x, KRYLOV_TOLERANCE, KRYLOV_MAX_ITERATIONS);
         if reps.iter().all(|r| r.converged) {
             rhs.clone_from_slice(&x);
-            return Ok((solver, [reps[0].iterations, reps[1].iterations]));
+            return Ok(Some((solver, [reps[0].iterations, reps[1].iterations])));
         }
     }
     LuSolver::new(a)?.solve_columns(rhs)?;
-    Ok((MvcSolver::Lu, [0, 0]))
+    Ok(Some((MvcSolver::Lu, [0, 0])))
 }
 
 /// Points on the unit circle at angles proportional to arc length along the loop.
@@ -374,6 +410,19 @@ mod tests {
             .map(|(a, b)| (a - b).norm())
             .fold(0.0, f64::max);
         assert!(err < 1e-10, "max difference {err}");
+        // The first approximation seen by `give_up` is close to the map;
+        // giving up returns no map, the direct solver has no preview.
+        let seen = std::cell::Cell::new(f64::NAN);
+        let look = |uv: &[Vec2]| {
+            seen.set(uv.iter().zip(&lu.uv).map(|(a, b)| (a - b).norm()).fold(0.0, f64::max));
+            true
+        };
+        let stopped =
+            mean_value_parameterization_unless(&p, &loops, 100, MvcSolver::Bicgstab, &look).unwrap();
+        assert!(stopped.is_none());
+        assert!(seen.get() < 0.1, "first approximation off by {}", seen.get());
+        let direct = mean_value_parameterization_unless(&p, &loops, 100, MvcSolver::Lu, &look);
+        assert!(direct.unwrap().is_some());
     }
 
     #[test]
