@@ -258,6 +258,7 @@ pub fn compute_crossfield(
                 report.final_residual = alt.final_residual;
                 report.energy = alt.energy;
                 report.converged = alt.converged;
+                report.stopped_on_plateau = alt.stopped_on_plateau;
             }
         }
     } else {
@@ -337,6 +338,7 @@ fn run_continuation<'p>(
         report.final_residual = out.residual;
         report.energy = out.energy;
         report.converged = out.converged;
+        report.stopped_on_plateau = out.plateau;
         stage_progress.set(1.0);
     }
     Ok(())

@@ -187,8 +187,13 @@ pub struct CrossfieldReport {
     pub epsilon: f64,
     /// ε of each continuation stage.
     pub epsilon_schedule: Vec<f64>,
-    /// True when the final stage reached `tolerance`.
+    /// True when the final stage reached `tolerance`, or stopped on the
+    /// discretization's plateau (`stopped_on_plateau`).
     pub converged: bool,
+    /// The final stage stopped because the energy stalled with the residual
+    /// on a small plateau (vortex patterns creeping along a grid-pinned zero
+    /// mode), before reaching `tolerance`.
+    pub stopped_on_plateau: bool,
     /// Number of singular vertices.
     pub n_singularities: usize,
     /// Singular vertices by index (fraction of a turn, as text "0.25", "-0.25", ...).
