@@ -59,10 +59,10 @@ pub fn validate_options(opts: &CrossfieldOptions) -> Result<(), CrossfieldError>
         ("epsilon", opts.epsilon),
         ("epsilon_start", opts.epsilon_start),
     ] {
-        if let Some(v) = v {
-            if !(v > 0.0 && v.is_finite()) {
-                return bad(name, format!("{v} (must be positive)"));
-            }
+        if let Some(v) = v
+            && !(v > 0.0 && v.is_finite())
+        {
+            return bad(name, format!("{v} (must be positive)"));
         }
     }
     if !(opts.epsilon_per_edge_length > 0.0 && opts.epsilon_per_edge_length.is_finite()) {
@@ -196,12 +196,13 @@ pub fn compute_crossfield(
         // Without boundary data, f = 0 is the GL minimizer as long as
         // 1/ε² ≤ λ₁ (the smallest eigenvalue of the connection Laplacian):
         // start the continuation where 1/ε₀² = 4 λ₁, i.e. |f|² ≈ 3/4.
-        if let InitialKind::Eigenvector(l1) | InitialKind::Mixed(l1) = kind {
-            if l1 > 0.0 && opts.epsilon_start.is_none() {
-                let e0 = (0.5 / l1.sqrt()).min(eps0).max(eps);
-                schedule = epsilon_schedule(e0, eps, opts.continuation_factor);
-                report.epsilon_schedule = schedule.clone();
-            }
+        if let InitialKind::Eigenvector(l1) | InitialKind::Mixed(l1) = kind
+            && l1 > 0.0
+            && opts.epsilon_start.is_none()
+        {
+            let e0 = (0.5 / l1.sqrt()).min(eps0).max(eps);
+            schedule = epsilon_schedule(e0, eps, opts.continuation_factor);
+            report.epsilon_schedule = schedule.clone();
         }
         // Closed surfaces without any aligned edge get a second candidate,
         // unless their curvature is (nearly) isotropic.
@@ -268,6 +269,7 @@ pub fn compute_crossfield(
     }
     report.n_modified_steps = solver.n_modified_steps;
     report.n_factorizations = solver.n_factorizations;
+    report.n_krylov_iterations = solver.n_krylov_iterations;
 
     let idx = vertex_indices(mesh, topo, &disc, &f);
     let chi = topology_summary(mesh, topo).euler_characteristic;

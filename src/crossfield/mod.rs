@@ -148,8 +148,11 @@ pub struct NewtonRecord {
     pub step: f64,
     /// Levenberg–Marquardt parameter μ of the step (units of 1/ε²; 0 = Newton).
     pub shift: f64,
-    /// `exact` (+ μ M) or `modified` Hessian used for the step.
+    /// `exact` (+ μ M, factored), `exact-cg` (+ μ M, conjugate gradients
+    /// preconditioned by an earlier factorization) or `modified` Hessian.
     pub hessian: &'static str,
+    /// Conjugate-gradient iterations of the step (`exact-cg`), else 0.
+    pub krylov_iterations: usize,
 }
 
 /// What the crossfield stage did.
@@ -179,6 +182,9 @@ pub struct CrossfieldReport {
     pub n_modified_steps: usize,
     /// Numeric Cholesky factorizations attempted (failed ones included).
     pub n_factorizations: usize,
+    /// Preconditioned conjugate-gradient iterations (large systems reuse a
+    /// factorization over several Newton steps).
+    pub n_krylov_iterations: usize,
     /// Scaled residual at the end.
     pub final_residual: f64,
     /// Final Ginzburg–Landau energy.
