@@ -91,11 +91,14 @@ pub fn validate_options(opts: &CrossfieldOptions) -> Result<(), CrossfieldError>
     Ok(())
 }
 
-/// The continuation schedule from `eps0` down to `eps`.
+/// The continuation schedule from `eps0` down to `eps`. An intermediate ε
+/// within 10 % of the final one is dropped: it would cost a stage (a
+/// factorization and a few Newton steps) for nothing (disk:408 had stages at
+/// 0.002762 and 0.002752).
 pub fn epsilon_schedule(eps0: f64, eps: f64, factor: f64) -> Vec<f64> {
     let mut s = Vec::new();
     let mut e = eps0;
-    while e > eps * (1.0 + 1e-9) && s.len() < 200 {
+    while e > eps * 1.1 && s.len() < 200 {
         s.push(e);
         e *= factor;
     }
@@ -524,5 +527,6 @@ mod tests {
         let s = epsilon_schedule(1.0, 0.1, 0.5);
         assert_eq!(s, vec![1.0, 0.5, 0.25, 0.125, 0.1]);
         assert_eq!(epsilon_schedule(0.1, 0.1, 0.5), vec![0.1]);
+        assert_eq!(epsilon_schedule(0.4, 0.099, 0.5), vec![0.4, 0.2, 0.099]);
     }
 }
