@@ -129,18 +129,26 @@ fn main() {
         );
         if verbose {
             eprintln!(
-                "eps schedule {:?}, init {}, modified steps {}, factorizations {}, candidates {:?} anisotropy {:.3}",
+                "eps schedule {:?}, init {}, modified steps {}, factorizations {}, CG iterations {}, candidates {:?} anisotropy {:.3}",
                 field.report.epsilon_schedule,
                 field.report.initial_guess,
                 field.report.n_modified_steps,
                 field.report.n_factorizations,
+                field.report.n_krylov_iterations,
                 field.report.candidate_energies,
                 field.report.curvature_anisotropy
             );
             for h in &field.report.history {
                 eprintln!(
-                    "  eps {:.4} it {:2} res {:.3e} E {:.9} step {:.3} mu {:.0e} {}",
-                    h.epsilon, h.iteration, h.residual, h.energy, h.step, h.shift, h.hessian
+                    "  eps {:.4} it {:2} res {:.3e} E {:.9} step {:.3} mu {:.0e} {} {}",
+                    h.epsilon,
+                    h.iteration,
+                    h.residual,
+                    h.energy,
+                    h.step,
+                    h.shift,
+                    h.hessian,
+                    h.krylov_iterations
                 );
             }
             for s in &field.singularities {

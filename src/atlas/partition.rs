@@ -33,10 +33,11 @@ pub fn bisect_dual_graph(patch: &PatchMesh) -> Result<Vec<i32>, AtlasError> {
         part[n / 2..].fill(1);
         return Ok(part);
     }
-    // METIS (GKlib) keeps its random generator in global state: calls from
-    // several pool threads would race and make partitions depend on timing.
-    static METIS_LOCK: std::sync::Mutex<()> = std::sync::Mutex::new(());
-    let _guard = METIS_LOCK.lock().unwrap_or_else(|poisoned| poisoned.into_inner());
+    // METIS (GKlib) keeps its random generator in global state: one lock
+    // for every METIS call of the crate.
+    let _guard = crate::linalg::ordering::METIS_LOCK
+        .lock()
+        .unwrap_or_else(|poisoned| poisoned.into_inner());
     metis::Graph::new(1, 2, &xadj, &adjncy)
         .map_err(|e| fail(format!("{e:?}")))?
         .part_recursive(&mut part)

@@ -148,8 +148,11 @@ pub struct NewtonRecord {
     pub step: f64,
     /// Levenberg–Marquardt parameter μ of the step (units of 1/ε²; 0 = Newton).
     pub shift: f64,
-    /// `exact` (+ μ M) or `modified` Hessian used for the step.
+    /// `exact` (+ μ M, factored), `exact-cg` (+ μ M, conjugate gradients
+    /// preconditioned by an earlier factorization) or `modified` Hessian.
     pub hessian: &'static str,
+    /// Conjugate-gradient iterations of the step (`exact-cg`), else 0.
+    pub krylov_iterations: usize,
 }
 
 /// What the crossfield stage did.
@@ -179,6 +182,9 @@ pub struct CrossfieldReport {
     pub n_modified_steps: usize,
     /// Numeric Cholesky factorizations attempted (failed ones included).
     pub n_factorizations: usize,
+    /// Preconditioned conjugate-gradient iterations (large systems reuse a
+    /// factorization over several Newton steps).
+    pub n_krylov_iterations: usize,
     /// Scaled residual at the end.
     pub final_residual: f64,
     /// Final Ginzburg–Landau energy.
@@ -187,8 +193,13 @@ pub struct CrossfieldReport {
     pub epsilon: f64,
     /// ε of each continuation stage.
     pub epsilon_schedule: Vec<f64>,
-    /// True when the final stage reached `tolerance`.
+    /// True when the final stage reached `tolerance`, or stopped on the
+    /// discretization's plateau (`stopped_on_plateau`).
     pub converged: bool,
+    /// The final stage stopped because the energy stalled with the residual
+    /// on a small plateau (vortex patterns creeping along a grid-pinned zero
+    /// mode), before reaching `tolerance`.
+    pub stopped_on_plateau: bool,
     /// Number of singular vertices.
     pub n_singularities: usize,
     /// Singular vertices by index (fraction of a turn, as text "0.25", "-0.25", ...).

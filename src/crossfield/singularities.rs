@@ -170,17 +170,17 @@ fn singularity_position(
             &disc.faces[ti],
             [f[fe[0].idx()], f[fe[1].idx()], f[fe[2].idx()]],
         );
-        if let Some(l) = linear_zero(&corner_values(&big_f)) {
-            if l.iter().all(|&x| x >= -1e-9) {
-                let p: Vec3 = mesh.triangles[ti]
-                    .iter()
-                    .zip(l)
-                    .map(|(c, w)| mesh.positions[c.idx()] * w)
-                    .sum();
-                let d = (p - pv).norm();
-                if best.is_none_or(|(bd, _)| d < bd) {
-                    best = Some((d, p));
-                }
+        if let Some(l) = linear_zero(&corner_values(&big_f))
+            && l.iter().all(|&x| x >= -1e-9)
+        {
+            let p: Vec3 = mesh.triangles[ti]
+                .iter()
+                .zip(l)
+                .map(|(c, w)| mesh.positions[c.idx()] * w)
+                .sum();
+            let d = (p - pv).norm();
+            if best.is_none_or(|(bd, _)| d < bd) {
+                best = Some((d, p));
             }
         }
     }

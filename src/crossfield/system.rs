@@ -231,6 +231,26 @@ impl NewtonSystem {
         }
     }
 
+    /// `y = A x` for the symmetric matrix whose lower triangle holds `values`.
+    pub fn sym_matvec(&self, values: &[f64], x: &[f64], y: &mut [f64]) {
+        y.fill(0.0);
+        let (cp, ri) = (self.symbolic.col_ptr(), self.symbolic.row_idx());
+        for j in 0..x.len() {
+            let xj = x[j];
+            let mut acc = 0.0;
+            for s in cp[j]..cp[j + 1] {
+                let (i, v) = (ri[s], values[s]);
+                if i == j {
+                    acc += v * xj;
+                } else {
+                    y[i] += v * xj;
+                    acc += v * x[i];
+                }
+            }
+            y[j] += acc;
+        }
+    }
+
     /// The diagonal entries of assembled values.
     pub fn diagonal(&self, values: &[f64]) -> Vec<f64> {
         self.diag_slot.iter().map(|&s| values[s as usize]).collect()
@@ -289,7 +309,7 @@ mod tests {
         let perturbed = |i: usize, s: f64| {
             let mut g = f.clone();
             let e = sys.free_edges[i / 2] as usize;
-            if i % 2 == 0 {
+            if i.is_multiple_of(2) {
                 g[e].re += s
             } else {
                 g[e].im += s

@@ -14,6 +14,7 @@
 pub mod assembly;
 pub mod error;
 pub mod krylov;
+pub mod ordering;
 pub mod solvers;
 pub mod supernodal;
 pub mod trisolve;
@@ -22,7 +23,7 @@ pub use assembly::{Pattern, Triplets};
 pub use error::LinalgError;
 pub use krylov::{KrylovReport, bicgstab, bicgstab_block, sparse_matvec};
 pub use solvers::{CholeskySolver, LuSolver};
-pub use supernodal::SupernodalCholesky;
+pub use supernodal::{FillOrdering, SupernodalCholesky};
 
 /// A sparse matrix in compressed column form.
 pub type SparseMatrix = faer::sparse::SparseColMat<usize, f64>;
