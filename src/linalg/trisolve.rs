@@ -104,20 +104,32 @@ fn backward<const K: usize>(
         tmp.extend(pattern.iter().map(|&r| x[r]));
         for c in (0..nc).rev() {
             let col = &block[c * ld..(c + 1) * ld];
-            let mut acc = x[start + c];
+            // Two partial sums per column: one would be a chain of
+            // dependent additions (measured 1.5× slower).
+            let (mut acc, mut acc2) = (x[start + c], [0.0; K]);
             for r in c + 1..nc {
                 let xr = x[start + r];
                 for k in 0..K {
                     acc[k] -= col[r] * xr[k];
                 }
             }
-            for (&l, t) in col[nc..].iter().zip(tmp.iter()) {
+            let (ls, ts) = (&col[nc..], &tmp[..]);
+            let half = ls.len() / 2;
+            for i in 0..half {
+                let (la, lb, ta, tb) = (ls[2 * i], ls[2 * i + 1], ts[2 * i], ts[2 * i + 1]);
+                for k in 0..K {
+                    acc[k] -= la * ta[k];
+                    acc2[k] -= lb * tb[k];
+                }
+            }
+            if ls.len() % 2 == 1 {
+                let (l, t) = (ls[ls.len() - 1], ts[ls.len() - 1]);
                 for k in 0..K {
                     acc[k] -= l * t[k];
                 }
             }
-            for v in &mut acc {
-                *v /= col[c];
+            for k in 0..K {
+                acc[k] = (acc[k] + acc2[k]) / col[c];
             }
             x[start + c] = acc;
         }
