@@ -107,18 +107,10 @@ mod tests {
     use super::super::groups::{binary_octahedral_group, binary_tetrahedral_group, vierer_group};
     use super::super::su2::su2_from_quaternion;
     use super::*;
+    use super::super::quaternion::tests::random_unit;
     use rand::rngs::StdRng;
     use rand::{Rng, SeedableRng};
 
-    pub(crate) fn random_unit(rng: &mut StdRng) -> Quat {
-        loop {
-            let q = Quat::new(rng.random_range(-1.0..1.0), rng.random_range(-1.0..1.0), rng.random_range(-1.0..1.0), rng.random_range(-1.0..1.0));
-            let n = q.norm();
-            if n > 0.1 && n < 1.0 {
-                return q.normalized();
-            }
-        }
-    }
 
     fn rel_close(a: &[C64; 3], b: &[C64; 3], tol: f64) -> bool {
         a.iter().zip(b).all(|(x, y)| (x - y).norm() <= tol * (x.norm().max(y.norm()).max(1e-300)))

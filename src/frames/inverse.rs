@@ -247,18 +247,10 @@ mod tests {
     use super::super::invariants::{frame_invariants, model_surface_relative_residual};
     use super::super::su2::frame_su2;
     use super::*;
+    use super::super::quaternion::tests::random_unit;
     use rand::rngs::StdRng;
     use rand::{Rng, SeedableRng};
 
-    fn random_unit(rng: &mut StdRng) -> Quat {
-        loop {
-            let q = Quat::new(rng.random_range(-1.0..1.0), rng.random_range(-1.0..1.0), rng.random_range(-1.0..1.0), rng.random_range(-1.0..1.0));
-            let n = q.norm();
-            if n > 0.1 && n < 1.0 {
-                return q.normalized();
-            }
-        }
-    }
 
     /// Distance between frame quaternions up to the groupset `±q O`.
     fn distance_mod_o(a: &Quat, b: &Quat) -> f64 {

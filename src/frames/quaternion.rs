@@ -196,12 +196,14 @@ pub fn reorthonormalize(r: &Mat3) -> Mat3 {
 }
 
 #[cfg(test)]
-mod tests {
+pub(crate) mod tests {
     use super::*;
     use rand::rngs::StdRng;
     use rand::{Rng, SeedableRng};
 
-    fn random_unit(rng: &mut StdRng) -> Quat {
+    /// A uniformly random unit quaternion (rejection sampling in the 4-ball);
+    /// shared by the frame tests.
+    pub(crate) fn random_unit(rng: &mut StdRng) -> Quat {
         loop {
             let q = Quat::new(rng.random_range(-1.0..1.0), rng.random_range(-1.0..1.0), rng.random_range(-1.0..1.0), rng.random_range(-1.0..1.0));
             let n = q.norm();
