@@ -80,6 +80,7 @@ fn main() {
             "--eps-h" => opts.epsilon_per_edge_length = args.remove(0).parse().expect("eps-h"),
             "--eps0" => opts.epsilon_start = Some(args.remove(0).parse().expect("eps0")),
             "--factor" => opts.continuation_factor = args.remove(0).parse().expect("factor"),
+            "--ctol" => opts.continuation_tolerance = args.remove(0).parse().expect("ctol"),
             "--n" => opts.symmetry = args.remove(0).parse().expect("n"),
             _ => inputs.push(a),
         }
