@@ -252,10 +252,15 @@ fn process_patch(
         return Ok(Outcome::Split { pieces, reason: SplitReason::Distortion, depth: depth + 1 });
     };
     let mut check = check_map(work, &param.uv, opts.min_relative_uv_area);
-    if !check.is_valid() && param.solver != MvcSolver::Lu {
-        // An iterative solution may miss a tiny triangle that the exact solution gets right.
-        param =
-            mean_value_parameterization(work, &loops, opts.max_hole_fill_vertices, MvcSolver::Lu)?;
+    if !check.is_valid() && param.solver != MvcSolver::PivotingLu {
+        // A solution to 10⁻¹⁰ may still miss a tiny triangle that a pivoting
+        // direct solve gets right.
+        param = mean_value_parameterization(
+            work,
+            &loops,
+            opts.max_hole_fill_vertices,
+            MvcSolver::PivotingLu,
+        )?;
         check = check_map(work, &param.uv, opts.min_relative_uv_area);
     }
     if !check.is_valid() {

@@ -43,8 +43,10 @@ pub struct AtlasOptions {
     /// How many times a patch may be split because its map failed before
     /// the stage gives up with an error naming it. Default 16.
     pub max_split_depth: usize,
-    /// Sparse solver of the mean value systems: `"bicgstab"` (default;
-    /// Cholesky-preconditioned, falls back to LU) or `"lu"`.
+    /// Sparse solver of the mean value systems: `"lu"` (default; supernodal
+    /// LU in single precision refined by BiCGSTAB), `"bicgstab"`
+    /// (preconditioned by the Cholesky factor of the symmetrized matrix) or
+    /// `"pivoting-lu"`; see [`MvcSolver`].
     pub solver: MvcSolver,
 }
 
@@ -60,7 +62,7 @@ impl Default for AtlasOptions {
             min_relative_uv_area: 1e-12,
             max_area_distortion: 1e4,
             max_split_depth: 16,
-            solver: MvcSolver::Bicgstab,
+            solver: MvcSolver::Lu,
         }
     }
 }

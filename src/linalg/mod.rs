@@ -17,6 +17,7 @@ pub mod krylov;
 pub mod ordering;
 pub mod solvers;
 pub mod supernodal;
+pub mod supernodal_lu;
 pub mod trisolve;
 
 pub use assembly::{Pattern, Triplets};
@@ -24,6 +25,7 @@ pub use error::LinalgError;
 pub use krylov::{KrylovReport, bicgstab, bicgstab_block, sparse_matvec};
 pub use solvers::{CholeskySolver, LuSolver};
 pub use supernodal::{FillOrdering, SupernodalCholesky};
+pub use supernodal_lu::SupernodalLu;
 
 /// A sparse matrix in compressed column form.
 pub type SparseMatrix = faer::sparse::SparseColMat<usize, f64>;
