@@ -127,14 +127,57 @@ pub fn build_atlas(
     // pinched at its boundary ([`PatchMesh::defect_of_manifold_piece`]).
     let manifold_input = summary.n_nonmanifold_vertices == 0;
     let feature_pairs = feature_vertex_pairs(&topo, &features);
-    // The input topology is not needed any more: free it before the patch
-    // phase, where memory peaks (11 MB for 200k triangles).
-    drop(topo);
     let n_model_faces = faces_of_model_face.len();
     let t_features = t0.elapsed().as_secs_f64();
     progress.set(0.05);
 
+    // The curvature of the input runs beside the patch phase, whose first
+    // split of a closed surface leaves the second core idle; it is the
+    // atlas mesh's unless a patch gets refined (same vertices, same
+    // triangles in another order).
     let t1 = Instant::now();
+    let (patches, input_curvature) = rayon::join(
+        || parameterize_patches(mesh, faces_of_model_face, manifold_input, opts, progress),
+        || principal_curvatures(mesh, &topo),
+    );
+    let (mut done, splits) = patches?;
+    drop(topo);
+    done.sort_by_key(|p| p.input_faces.iter().min().copied());
+    let t_patches = t1.elapsed().as_secs_f64();
+
+    let t2 = Instant::now();
+    let refined = done.iter().any(|p| p.report.n_bisections > 0);
+    let mut atlas = assemble(mesh, done, features);
+    let atlas_topo = Topology::new(&atlas.mesh);
+    attach_curves(&mut atlas, &atlas_topo, &feature_pairs);
+    progress.check()?;
+    atlas.curvature = if refined {
+        principal_curvatures(&atlas.mesh, &atlas_topo)
+    } else {
+        input_curvature
+    };
+    let t_curves = t2.elapsed().as_secs_f64();
+    atlas.report = AtlasReport::new(
+        mesh,
+        &summary,
+        &atlas,
+        n_model_faces,
+        splits,
+        [t_features, t_patches, t_curves],
+    );
+    progress.set(1.0);
+    Ok(atlas)
+}
+
+/// Parameterize every model face, splitting patches (in parallel, level by
+/// level) until each has a valid map; the done patches and why splits happened.
+fn parameterize_patches(
+    mesh: &TriMesh,
+    faces_of_model_face: Vec<Vec<FaceId>>,
+    manifold_input: bool,
+    opts: &AtlasOptions,
+    progress: &Progress,
+) -> Result<(Vec<DonePatch>, SplitCounts), AtlasError> {
     let mut pending: Vec<(Vec<FaceId>, usize)> =
         faces_of_model_face.into_iter().map(|f| (f, 0)).collect();
     let mut done: Vec<DonePatch> = Vec::new();
@@ -162,26 +205,7 @@ pub fn build_atlas(
         }
         progress.set(0.05 + 0.85 * n_done as f64 / n_total);
     }
-    done.sort_by_key(|p| p.input_faces.iter().min().copied());
-    let t_patches = t1.elapsed().as_secs_f64();
-
-    let t2 = Instant::now();
-    let mut atlas = assemble(mesh, done, features);
-    let atlas_topo = Topology::new(&atlas.mesh);
-    attach_curves(&mut atlas, &atlas_topo, &feature_pairs);
-    progress.check()?;
-    atlas.curvature = principal_curvatures(&atlas.mesh, &atlas_topo);
-    let t_curves = t2.elapsed().as_secs_f64();
-    atlas.report = AtlasReport::new(
-        mesh,
-        &summary,
-        &atlas,
-        n_model_faces,
-        splits,
-        [t_features, t_patches, t_curves],
-    );
-    progress.set(1.0);
-    Ok(atlas)
+    Ok((done, splits))
 }
 
 /// Check, refine, parameterize and verify one patch, or split it.
