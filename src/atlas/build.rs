@@ -644,6 +644,25 @@ mod tests {
         assert!(a.patches.len() >= 2);
         assert!(a.report.splits.closed >= 1);
         assert!(a.patches.iter().all(|p| p.report.n_boundary_loops == 1));
+        assert_curvature_is_the_atlas_meshs(&a);
+    }
+
+    /// The input's curvature, computed beside the patch phase, is the atlas
+    /// mesh's (no patch refined): same values, same directions where they
+    /// are defined (not at umbilics).
+    fn assert_curvature_is_the_atlas_meshs(a: &Atlas) {
+        assert!(a.patches.iter().all(|p| p.report.n_bisections == 0));
+        let own = principal_curvatures(&a.mesh, &Topology::new(&a.mesh));
+        let c = &a.curvature;
+        assert_eq!(own.curvature_max.len(), c.curvature_max.len());
+        for v in 0..c.curvature_max.len() {
+            let (k1, k2) = (own.curvature_max[v], own.curvature_min[v]);
+            assert!((k1 - c.curvature_max[v]).abs() < 1e-9 && (k2 - c.curvature_min[v]).abs() < 1e-9);
+            if (k1 - k2).abs() > 0.1 * k1.abs().max(k2.abs()) {
+                let (x, y) = (own.direction_max[v], c.direction_max[v]);
+                assert!((x - y).norm() < 1e-6 || (x + y).norm() < 1e-6, "vertex {v}: {x} {y}");
+            }
+        }
     }
 
     #[test]
@@ -657,6 +676,7 @@ mod tests {
             let pm = PatchMesh::extract(&a.mesh, &faces);
             assert_eq!(pm.defect(), None);
         }
+        assert_curvature_is_the_atlas_meshs(&a);
     }
 
     #[test]
