@@ -13,7 +13,8 @@ pub struct AtlasOptions {
     /// and non-manifold edges stay features).
     pub feature_angle_deg: f64,
     /// Largest patch (triangles, before refinement) parameterized in one
-    /// piece; larger patches are bisected. Default 100000.
+    /// piece; a larger patch is cut into as few parts as fit
+    /// ([`super::partition::parts_for_size`]). Default 100000.
     pub max_patch_triangles: usize,
     /// Holes with at most this many vertices are filled with a pseudo-centre
     /// (thesis ch. 2 §3.4); larger ones get homogeneous Neumann conditions.

@@ -1,4 +1,4 @@
-//! Balanced minimum edge-cut bisection of a patch's dual graph (thesis ch. 2
+//! Balanced minimum edge-cut partitions of a patch's dual graph (thesis ch. 2
 //! §4.2, which uses METIS).
 //!
 //! The dual graph has one node per triangle and one edge per interior
@@ -6,7 +6,9 @@
 //! gives a balanced cut of (near-)minimal length; each part is then split
 //! into its edge-connected components, since a bisection need not keep the
 //! parts connected. Measured in DEPENDENCIES.md: 45 ms for a 100k-triangle
-//! dual graph, the best cut among the partitioners tried.
+//! dual graph, the best cut among the partitioners tried. A patch far above
+//! the size cap is cut once with `METIS_PartGraphKway` into as many parts
+//! as needed ([`parts_for_size`]) rather than bisected level by level.
 
 use super::error::AtlasError;
 use super::patch::PatchMesh;
@@ -18,6 +20,17 @@ use crate::mesh::{EdgeId, FaceId};
 /// # Errors
 /// [`AtlasError::Partition`] when METIS fails or the patch has < 2 triangles.
 pub fn bisect_dual_graph(patch: &PatchMesh) -> Result<Vec<i32>, AtlasError> {
+    partition_dual_graph(patch, 2)
+}
+
+/// Local triangle part (`0..k`) of a balanced minimum edge-cut partition
+/// into `k ≥ 2` parts: recursive bisection for two parts (METIS's tightest
+/// balance, 0.1 %), multilevel k-way beyond (one coarsening for all parts;
+/// balance within 3 %).
+///
+/// # Errors
+/// [`AtlasError::Partition`] when METIS fails or the patch has < 2 triangles.
+pub fn partition_dual_graph(patch: &PatchMesh, k: usize) -> Result<Vec<i32>, AtlasError> {
     let n = patch.n_faces();
     let fail = |message: String| AtlasError::Partition {
         n_faces: n,
@@ -26,11 +39,14 @@ pub fn bisect_dual_graph(patch: &PatchMesh) -> Result<Vec<i32>, AtlasError> {
     if n < 2 {
         return Err(fail("a single triangle cannot be split".into()));
     }
+    let k = k.clamp(2, n);
     let (xadj, adjncy) = dual_graph_csr(patch);
     let mut part = vec![0i32; n];
     if adjncy.is_empty() {
-        // No dual edges: split by index halves; components are separated below anyway.
-        part[n / 2..].fill(1);
+        // No dual edges: split by index ranges; components are separated below anyway.
+        for (f, p) in part.iter_mut().enumerate() {
+            *p = (f * k / n) as i32;
+        }
         return Ok(part);
     }
     // METIS (GKlib) keeps its random generator in global state: one lock
@@ -38,12 +54,36 @@ pub fn bisect_dual_graph(patch: &PatchMesh) -> Result<Vec<i32>, AtlasError> {
     let _guard = crate::linalg::ordering::METIS_LOCK
         .lock()
         .unwrap_or_else(|poisoned| poisoned.into_inner());
-    metis::Graph::new(1, 2, &xadj, &adjncy)
-        .map_err(|e| fail(format!("{e:?}")))?
-        .part_recursive(&mut part)
-        .map_err(|e| fail(format!("{e:?}")))?;
+    let graph = metis::Graph::new(1, k as i32, &xadj, &adjncy).map_err(|e| fail(format!("{e:?}")))?;
+    if k == 2 {
+        graph.part_recursive(&mut part)
+    } else {
+        graph.part_kway(&mut part)
+    }
+    .map_err(|e| fail(format!("{e:?}")))?;
     Ok(part)
 }
+
+/// How many parts a patch of `n` triangles is cut into for the size cap
+/// `cap`: two (a bisection) when halves fit, else enough k-way parts that
+/// METIS's 3 % imbalance stays under the cap. One k-way cut of a
+/// 1M-triangle sphere into 12 parts replaces four levels of bisection
+/// (15 METIS calls, which the METIS lock serializes, and the extraction and
+/// topology of every intermediate piece).
+pub fn parts_for_size(n: usize, cap: usize) -> usize {
+    let cap = cap.max(1);
+    if n.div_ceil(cap) <= 2 {
+        2
+    } else {
+        // Even, so the parts pair up on two cores (11 parts left one idle
+        // for the last solve).
+        let k = (n as f64 * KWAY_IMBALANCE / cap as f64).ceil() as usize;
+        k + k % 2
+    }
+}
+
+/// METIS's default load imbalance tolerance for k-way partitions (ufactor 30).
+const KWAY_IMBALANCE: f64 = 1.03;
 
 /// Dual graph of the patch in METIS CSR form (`xadj`, `adjncy`).
 fn dual_graph_csr(patch: &PatchMesh) -> (Vec<i32>, Vec<i32>) {
@@ -68,7 +108,17 @@ fn dual_graph_csr(patch: &PatchMesh) -> (Vec<i32>, Vec<i32>) {
 /// # Errors
 /// [`AtlasError::Partition`] when the bisection fails.
 pub fn split_patch(patch: &PatchMesh) -> Result<Vec<Vec<FaceId>>, AtlasError> {
-    let part = bisect_dual_graph(patch)?;
+    split_patch_into(patch, 2)
+}
+
+/// Split a patch into the connected pieces of a `k`-part partition
+/// ([`partition_dual_graph`]): global triangle sets, each edge-connected,
+/// largest first.
+///
+/// # Errors
+/// [`AtlasError::Partition`] when the partition fails.
+pub fn split_patch_into(patch: &PatchMesh, k: usize) -> Result<Vec<Vec<FaceId>>, AtlasError> {
+    let part = partition_dual_graph(patch, k)?;
     let topo = &patch.topo;
     let comps = face_components(topo, |e: EdgeId| {
         let faces = topo.edge_faces(e);
@@ -96,6 +146,30 @@ pub fn cut_size(patch: &PatchMesh, part: &[i32]) -> usize {
 mod tests {
     use super::*;
     use crate::mesh::fixtures;
+
+    #[test]
+    fn size_splits_use_as_few_parts_as_fit() {
+        assert_eq!(parts_for_size(199_692, 100_000), 2);
+        assert_eq!(parts_for_size(250_000, 100_000), 4);
+        assert_eq!(parts_for_size(1_002_252, 100_000), 12);
+        assert_eq!(parts_for_size(10, 1), 12);
+    }
+
+    #[test]
+    fn kway_parts_are_balanced() {
+        let m = fixtures::icosphere(4); // 5120 triangles
+        let faces: Vec<FaceId> = (0..m.n_faces()).map(FaceId::new).collect();
+        let p = PatchMesh::extract(&m, &faces);
+        let part = partition_dual_graph(&p, 6).unwrap();
+        for k in 0..6 {
+            let size = part.iter().filter(|&&x| x == k).count();
+            assert!(size as f64 <= 1.03 * 5120.0 / 6.0 + 1.0, "part {k}: {size}");
+            assert!(size > 0);
+        }
+        let pieces = split_patch_into(&p, 6).unwrap();
+        assert!(pieces.len() >= 6);
+        assert_eq!(pieces.iter().map(Vec::len).sum::<usize>(), 5120);
+    }
 
     #[test]
     fn sphere_bisection_is_balanced_with_a_short_cut() {

@@ -62,7 +62,7 @@ pub struct SplitCounts {
     pub disconnected: usize,
     /// Boundary touching itself.
     pub pinched_boundary: usize,
-    /// Above `max_patch_triangles`.
+    /// Above `max_patch_triangles` (one count per cut, whatever its number of parts).
     pub size: usize,
     /// The map failed verification (flipped or near-zero parametric areas).
     pub map_failed: usize,
