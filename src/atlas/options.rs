@@ -45,7 +45,7 @@ pub struct AtlasOptions {
     /// the stage gives up with an error naming it. Default 16.
     pub max_split_depth: usize,
     /// Sparse solver of the mean value systems: `"lu"` (default; supernodal
-    /// LU in single precision refined by BiCGSTAB), `"bicgstab"`
+    /// LU in single precision, refined in double), `"bicgstab"`
     /// (preconditioned by the Cholesky factor of the symmetrized matrix) or
     /// `"pivoting-lu"`; see [`MvcSolver`].
     pub solver: MvcSolver,

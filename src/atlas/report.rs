@@ -41,7 +41,8 @@ pub struct PatchReport {
     pub n_map_splits: usize,
     /// Sparse solver used for the map.
     pub solver: MvcSolver,
-    /// BiCGSTAB iterations for u and v (0 with LU).
+    /// BiCGSTAB iterations (refinement steps with the default `lu`; 0 with
+    /// `pivoting-lu`) for u and v.
     pub krylov_iterations: [usize; 2],
     /// Wall seconds spent refining, solving and verifying this patch.
     pub solve_seconds: f64,

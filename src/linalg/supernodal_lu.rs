@@ -123,22 +123,13 @@ impl<T: LuScalar> SupernodalLu<T> {
         structure_of(&self.symbolic)
     }
 
-    /// `new → old` and `old → new` index maps of the ordering.
-    fn permutation(&self) -> (Vec<usize>, Vec<usize>) {
-        let n = self.symbolic.nrows();
-        match self.symbolic.perm() {
-            Some(p) => {
-                let (fwd, inv) = p.arrays();
-                (fwd.to_vec(), inv.to_vec())
-            }
-            None => ((0..n).collect(), (0..n).collect()),
-        }
-    }
-
     /// Numeric factorization: scatter `P A Pᵀ` into the blocks, then factor
     /// the supernodes in order, each pushing its Schur update to later ones.
     fn numeric(&mut self, a: &SparseMatrix) -> Result<(), LinalgError> {
-        let (_, inv) = self.permutation();
+        let inv: Vec<usize> = match self.symbolic.perm() {
+            Some(p) => p.arrays().1.to_vec(),
+            None => (0..a.nrows()).collect(),
+        };
         let owner = self.owners();
         self.scatter_matrix(a, &inv, &owner);
         let max_diag = (0..a.ncols())
@@ -306,7 +297,13 @@ impl<T: LuScalar> SupernodalLu<T> {
             }
             return Ok(());
         }
-        let (fwd, _) = self.permutation();
+        let Some(perm) = self.symbolic.perm() else {
+            let mut tmp = Vec::new();
+            self.forward(x, &mut tmp);
+            self.backward(x, &mut tmp);
+            return Ok(());
+        };
+        let (fwd, _) = perm.arrays();
         let mut y: Vec<[f64; K]> = fwd.iter().map(|&old| x[old]).collect();
         let mut tmp = Vec::new();
         self.forward(&mut y, &mut tmp);
