@@ -235,45 +235,21 @@ impl<T: LuScalar> SupernodalLu<T> {
             nc,
             schur,
         );
+        // The rows of p owned by one supernode t are consecutive.
         let mut g0 = 0;
         while g0 < np {
             let t = owner[p[g0]] as usize;
             let (c0, c1) = (sn.supernode_begin()[t], sn.supernode_end()[t]);
             let g1 = g0 + p[g0..].partition_point(|&r| r < c1);
             let pt = sn.supernode(t).pattern();
-            let (nct, npt) = (c1 - c0, pt.len());
-            let ldt = nct + npt;
-            // Local row of p[a] in t (diagonal block, then t's pattern).
-            loc.clear();
-            loc.extend(p[g0..g1].iter().map(|&r| r - c0));
-            let mut k = 0;
-            for &r in &p[g1..] {
-                while pt[k] < r {
-                    k += 1;
-                }
-                loc.push(nct + k);
-            }
-            let blk = &mut self.lu[vp[t]..vp[t + 1]];
-            let ut = &mut self.ut[self.ut_ptr[t]..self.ut_ptr[t + 1]];
-            for b in g0..g1 {
-                let cb = p[b] - c0;
-                // L part: column p[b], rows p[a], a ≥ b.
-                let col = &mut blk[cb * ldt..(cb + 1) * ldt];
-                let sc = &schur[b * np..(b + 1) * np];
-                for a in b..np {
-                    col[loc[a - g0]] -= sc[a];
-                }
-                // U part: row p[b], columns p[a], a > b.
-                for a in b + 1..np {
-                    let la = loc[a - g0];
-                    let v = schur[a * np + b];
-                    if la < nct {
-                        blk[la * ldt + cb] -= v;
-                    } else {
-                        ut[cb * npt + la - nct] -= v;
-                    }
-                }
-            }
+            local_rows(&p[g0..], g1 - g0, c0, c1 - c0, pt, loc);
+            let target = Target {
+                blk: &mut self.lu[vp[t]..vp[t + 1]],
+                ut: &mut self.ut[self.ut_ptr[t]..self.ut_ptr[t + 1]],
+                nc: c1 - c0,
+                np: pt.len(),
+            };
+            subtract_schur_block(target, schur, np, g0, g1, &p[g0..g1], c0, loc);
             g0 = g1;
         }
     }
@@ -450,6 +426,65 @@ impl LuScalar for f32 {
     }
     fn abs_value(self) -> Self {
         self.abs()
+    }
+}
+
+/// The `L` and `Uᵀ` blocks of the supernode receiving a Schur update.
+struct Target<'a, T> {
+    blk: &'a mut [T],
+    ut: &'a mut [T],
+    nc: usize,
+    np: usize,
+}
+
+/// Local rows, in the receiving supernode (its `nc` columns from `c0`, then
+/// its `pattern`), of `rows`, whose first `n_own` are among its columns and
+/// the rest in its pattern (both sorted): a merge, no search.
+fn local_rows(rows: &[usize], n_own: usize, c0: usize, nc: usize, pattern: &[usize], loc: &mut Vec<usize>) {
+    loc.clear();
+    loc.extend(rows[..n_own].iter().map(|&r| r - c0));
+    let mut k = 0;
+    for &r in &rows[n_own..] {
+        while pattern[k] < r {
+            k += 1;
+        }
+        loc.push(nc + k);
+    }
+}
+
+/// Subtract from supernode `t` (its columns are `own = p[g0..g1]`, first
+/// column `c0`) the entries of the dense `np × np` Schur block whose column
+/// (for `L`) or row (for `U`) is one of its columns; `loc[a − g0]` is the
+/// local row of `p[a]` in `t`.
+#[allow(clippy::too_many_arguments)]
+fn subtract_schur_block<T: LuScalar>(
+    t: Target<'_, T>,
+    schur: &[T],
+    np: usize,
+    g0: usize,
+    g1: usize,
+    own: &[usize],
+    c0: usize,
+    loc: &[usize],
+) {
+    let ld = t.nc + t.np;
+    for (b, &col_b) in (g0..g1).zip(own) {
+        let cb = col_b - c0;
+        // L part: column p[b], rows p[a], a ≥ b.
+        let col = &mut t.blk[cb * ld..(cb + 1) * ld];
+        for (a, &v) in schur[b * np..(b + 1) * np].iter().enumerate().skip(b) {
+            col[loc[a - g0]] -= v;
+        }
+        // U part: row p[b], columns p[a], a > b.
+        for a in b + 1..np {
+            let la = loc[a - g0];
+            let v = schur[a * np + b];
+            if la < t.nc {
+                t.blk[la * ld + cb] -= v;
+            } else {
+                t.ut[cb * t.np + la - t.nc] -= v;
+            }
+        }
     }
 }
 
