@@ -35,7 +35,9 @@
 use super::error::AtlasError;
 use super::patch::PatchMesh;
 use crate::geom::{Vec2, Vec3};
-use crate::linalg::{LinalgError, LuSolver, SparseMatrix, SupernodalCholesky, SupernodalLu, Triplets, bicgstab_block};
+use crate::linalg::{
+    LinalgError, LuSolver, SparseMatrix, SupernodalCholesky, SupernodalLu, Triplets, bicgstab_block,
+};
 use crate::mesh::VertexId;
 use crate::mesh::boundary::BoundaryLoop;
 use serde::{Deserialize, Serialize};
@@ -90,8 +92,9 @@ pub fn mean_value_parameterization(
     solver: MvcSolver,
 ) -> Result<PatchParameterization, AtlasError> {
     let never = |_: &[Vec2]| false;
-    mean_value_parameterization_unless(patch, loops, max_fill_vertices, solver, &never)?
-        .ok_or_else(|| AtlasError::Linalg(LinalgError::Internal("mean value solve abandoned".into())))
+    mean_value_parameterization_unless(patch, loops, max_fill_vertices, solver, &never)?.ok_or_else(
+        || AtlasError::Linalg(LinalgError::Internal("mean value solve abandoned".into())),
+    )
 }
 
 /// As [`mean_value_parameterization`], but with BiCGSTAB the first
@@ -145,7 +148,8 @@ pub fn mean_value_parameterization_unless(
     // triangle corner): ~3.5 triplets per triangle for A, ~2 for S.
     let pos = &patch.mesh.positions;
     let topo = &patch.topo;
-    let (mut lam_lo_hi, mut lam_hi_lo) = (vec![0.0f64; topo.n_edges()], vec![0.0f64; topo.n_edges()]);
+    let (mut lam_lo_hi, mut lam_hi_lo) =
+        (vec![0.0f64; topo.n_edges()], vec![0.0f64; topo.n_edges()]);
     for (f, t) in patch.mesh.triangles.iter().enumerate() {
         let fe = topo.face_edges[f];
         for c in 0..3 {
@@ -162,7 +166,8 @@ pub fn mean_value_parameterization_unless(
             }
         }
     }
-    let capacity = 2 * topo.n_edges() + n + 6 * filled.iter().map(|h| h.vertices.len()).sum::<usize>();
+    let capacity =
+        2 * topo.n_edges() + n + 6 * filled.iter().map(|h| h.vertices.len()).sum::<usize>();
     let mut system = MvcSystem::new(n, capacity, solver == MvcSolver::Bicgstab);
     for (e, [a, b]) in topo.edges.iter().enumerate() {
         let (ra, rb) = (unknown_of[a.idx()], unknown_of[b.idx()]);
@@ -174,7 +179,13 @@ pub fn mean_value_parameterization_unless(
         }
     }
     for (h, hole) in filled.iter().enumerate() {
-        add_virtual_fill(&mut system, pos, &hole.vertices, &unknown_of, n_unknowns + h);
+        add_virtual_fill(
+            &mut system,
+            pos,
+            &hole.vertices,
+            &unknown_of,
+            n_unknowns + h,
+        );
     }
     // The per-edge weights are not needed any more (memory peaks in the solve).
     drop((lam_lo_hi, lam_hi_lo));
@@ -265,7 +276,12 @@ const MAX_REFINEMENTS: usize = 3;
 /// single-precision LU of `A` itself, `M⁻¹ A` is the identity up to ~10⁻⁶
 /// and one step reaches 10⁻¹⁰ (every corpus patch): two applications of
 /// `M⁻¹` where a BiCGSTAB iteration costs three.
-fn refine(a: &SparseMatrix, apply: &dyn Fn(&mut [Vec<f64>]), b: &[Vec<f64>], x: &mut [Vec<f64>]) -> Option<usize> {
+fn refine(
+    a: &SparseMatrix,
+    apply: &dyn Fn(&mut [Vec<f64>]),
+    b: &[Vec<f64>],
+    x: &mut [Vec<f64>],
+) -> Option<usize> {
     let norm = |v: &[f64]| v.iter().map(|t| t * t).sum::<f64>().sqrt();
     let b_norm: Vec<f64> = b.iter().map(|c| norm(c)).collect();
     let mut r = vec![vec![0.0; b[0].len()]; b.len()];
@@ -311,7 +327,11 @@ fn preconditioned_solve(
     give_up: &dyn Fn(&[Vec<f64>]) -> bool,
 ) -> Krylov {
     let apply = |cols: &mut [Vec<f64>]| {
-        let mut x: Vec<[f64; 2]> = cols[0].iter().zip(&cols[1]).map(|(&u, &v)| [u, v]).collect();
+        let mut x: Vec<[f64; 2]> = cols[0]
+            .iter()
+            .zip(&cols[1])
+            .map(|(&u, &v)| [u, v])
+            .collect();
         // Lengths always match the factored matrix here.
         let _ = precond(&mut x);
         for (i, [u, v]) in x.into_iter().enumerate() {
@@ -328,7 +348,14 @@ fn preconditioned_solve(
         rhs.clone_from_slice(&x);
         return Krylov::Converged([steps; 2]);
     }
-    let reps = bicgstab_block(a, &apply, rhs, &mut x, KRYLOV_TOLERANCE, KRYLOV_MAX_ITERATIONS);
+    let reps = bicgstab_block(
+        a,
+        &apply,
+        rhs,
+        &mut x,
+        KRYLOV_TOLERANCE,
+        KRYLOV_MAX_ITERATIONS,
+    );
     if reps.iter().all(|r| r.converged) {
         rhs.clone_from_slice(&x);
         Krylov::Converged([reps[0].iterations, reps[1].iterations])
@@ -423,7 +450,11 @@ impl MvcSystem {
             triplets: Triplets::with_capacity(n, n, capacity),
             diagonal: vec![0.0; n],
             with_symmetric,
-            symmetric: Triplets::with_capacity(n_sym, n_sym, if with_symmetric { capacity / 2 + n } else { 0 }),
+            symmetric: Triplets::with_capacity(
+                n_sym,
+                n_sym,
+                if with_symmetric { capacity / 2 + n } else { 0 },
+            ),
             symmetric_diagonal: vec![0.0; n_sym],
             rhs: [vec![0.0; n], vec![0.0; n]],
         }
@@ -454,8 +485,14 @@ impl MvcSystem {
 
     /// `A`, `S` (when assembled) and the right-hand sides `[u, v]`.
     fn finish(self) -> Result<AssembledSystem, AtlasError> {
-        let Self { mut triplets, diagonal, with_symmetric, mut symmetric, symmetric_diagonal, rhs: [u, v] } =
-            self;
+        let Self {
+            mut triplets,
+            diagonal,
+            with_symmetric,
+            mut symmetric,
+            symmetric_diagonal,
+            rhs: [u, v],
+        } = self;
         for (i, d) in diagonal.iter().enumerate() {
             triplets.push(i, i, *d);
         }
@@ -520,26 +557,42 @@ mod tests {
             let it = mean_value_parameterization(&p, &loops, 100, solver).unwrap();
             assert_eq!(it.solver, solver);
             assert!(it.iterations[0] < 50, "{solver:?}: {:?}", it.iterations);
-            let err = exact.uv.iter().zip(&it.uv).map(|(a, b)| (a - b).norm()).fold(0.0, f64::max);
+            let err = exact
+                .uv
+                .iter()
+                .zip(&it.uv)
+                .map(|(a, b)| (a - b).norm())
+                .fold(0.0, f64::max);
             assert!(err < 1e-10, "{solver:?}: max difference {err}");
             // The first approximation seen by `give_up` is close to the
             // map; giving up returns no map.
             let seen = std::cell::Cell::new(f64::NAN);
             let look = |uv: &[Vec2]| {
-                seen.set(uv.iter().zip(&exact.uv).map(|(a, b)| (a - b).norm()).fold(0.0, f64::max));
+                seen.set(
+                    uv.iter()
+                        .zip(&exact.uv)
+                        .map(|(a, b)| (a - b).norm())
+                        .fold(0.0, f64::max),
+                );
                 true
             };
-            let stopped = mean_value_parameterization_unless(&p, &loops, 100, solver, &look).unwrap();
+            let stopped =
+                mean_value_parameterization_unless(&p, &loops, 100, solver, &look).unwrap();
             assert!(stopped.is_none());
             let close = if solver == MvcSolver::Lu { 1e-4 } else { 0.1 };
-            assert!(seen.get() < close, "{solver:?}: first approximation off by {}", seen.get());
+            assert!(
+                seen.get() < close,
+                "{solver:?}: first approximation off by {}",
+                seen.get()
+            );
         }
         // The single-precision LU needs one or two refinement steps.
         let lu = mean_value_parameterization(&p, &loops, 100, MvcSolver::Lu).unwrap();
         assert!(lu.iterations.iter().all(|&i| i <= 2), "{:?}", lu.iterations);
         // The pivoting LU has no preview.
         let look = |_: &[Vec2]| true;
-        let direct = mean_value_parameterization_unless(&p, &loops, 100, MvcSolver::PivotingLu, &look);
+        let direct =
+            mean_value_parameterization_unless(&p, &loops, 100, MvcSolver::PivotingLu, &look);
         assert!(direct.unwrap().is_some());
     }
 

@@ -54,7 +54,8 @@ pub fn partition_dual_graph(patch: &PatchMesh, k: usize) -> Result<Vec<i32>, Atl
     let _guard = crate::linalg::ordering::METIS_LOCK
         .lock()
         .unwrap_or_else(|poisoned| poisoned.into_inner());
-    let graph = metis::Graph::new(1, k as i32, &xadj, &adjncy).map_err(|e| fail(format!("{e:?}")))?;
+    let graph =
+        metis::Graph::new(1, k as i32, &xadj, &adjncy).map_err(|e| fail(format!("{e:?}")))?;
     if k == 2 {
         graph.part_recursive(&mut part)
     } else {
