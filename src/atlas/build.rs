@@ -15,7 +15,7 @@ use super::error::AtlasError;
 use super::features::{FeatureCurve, Features, detect_features, edge_chains, model_faces};
 use super::mvc::{MvcSolver, mean_value_parameterization, mean_value_parameterization_unless};
 use super::options::AtlasOptions;
-use super::partition::{parts_for_size, split_patch, split_patch_into};
+use super::partition::{parts_for_distortion, parts_for_size, split_patch, split_patch_into};
 use super::patch::PatchMesh;
 use super::refine::bisect_inner_edges;
 use super::report::{AtlasReport, PatchReport, SplitCounts, SplitReason};
@@ -261,8 +261,10 @@ fn process_patch(
     let may_split = depth < opts.max_split_depth && patch.n_faces() >= 2;
     // A first approximation compressed far beyond the limit will be split
     // anyway: do not solve it to the end.
+    let preview_distortion = std::cell::Cell::new(0.0);
     let hopeless = |uv: &[Vec2]| {
-        may_split && area_distortion(work, uv) > PREVIEW_DISTORTION_MARGIN * opts.max_area_distortion
+        preview_distortion.set(area_distortion(work, uv));
+        may_split && preview_distortion.get() > PREVIEW_DISTORTION_MARGIN * opts.max_area_distortion
     };
     let first = mean_value_parameterization_unless(
         work,
@@ -272,7 +274,8 @@ fn process_patch(
         &hopeless,
     )?;
     let Some(mut param) = first else {
-        let pieces = split_patch(&patch)?;
+        let k = parts_for_distortion(preview_distortion.get(), opts.max_area_distortion);
+        let pieces = split_patch_into(&patch, k)?;
         return Ok(Outcome::Split { pieces, reason: SplitReason::Distortion, depth: depth + 1 });
     };
     let mut check = check_map(work, &param.uv, opts.min_relative_uv_area);

@@ -83,6 +83,24 @@ pub fn parts_for_size(n: usize, cap: usize) -> usize {
     }
 }
 
+/// How many parts a patch whose map has area distortion `d` is cut into so
+/// that each part's falls under `limit`. The distortion of a tube (a cut
+/// torus, a long protrusion) grows exponentially with its length over its
+/// girth, so `k` pieces of it have about `d^(1/k)`: `k = ⌈ln d / ln limit⌉`
+/// (at least 2, at most [`MAX_DISTORTION_PARTS`]). On the 200k torus the
+/// 100k-triangle half tubes went to quarters, then eighths, each level
+/// paying a factorization per piece before this.
+pub fn parts_for_distortion(d: f64, limit: f64) -> usize {
+    if !(d > limit && limit > 1.0) {
+        return 2;
+    }
+    let k = (d.ln() / limit.ln()).ceil();
+    if k.is_finite() { (k as usize).clamp(2, MAX_DISTORTION_PARTS) } else { MAX_DISTORTION_PARTS }
+}
+
+/// Most parts of one distortion cut (a few levels of recursion handle worse).
+const MAX_DISTORTION_PARTS: usize = 16;
+
 /// METIS's default load imbalance tolerance for k-way partitions (ufactor 30).
 const KWAY_IMBALANCE: f64 = 1.03;
 
@@ -154,6 +172,15 @@ mod tests {
         assert_eq!(parts_for_size(250_000, 100_000), 4);
         assert_eq!(parts_for_size(1_002_252, 100_000), 12);
         assert_eq!(parts_for_size(10, 1), 12);
+    }
+
+    #[test]
+    fn distortion_cuts_aim_at_the_limit() {
+        assert_eq!(parts_for_distortion(2e4, 1e4), 2);
+        assert_eq!(parts_for_distortion(8e5, 1e4), 2);
+        assert_eq!(parts_for_distortion(1e11, 1e4), 3);
+        assert_eq!(parts_for_distortion(f64::INFINITY, 1e4), MAX_DISTORTION_PARTS);
+        assert_eq!(parts_for_distortion(f64::NAN, 1e4), 2);
     }
 
     #[test]
