@@ -160,7 +160,9 @@ pub struct NewtonRecord {
     /// `exact` (+ μ M, factored), `exact-cg` (+ μ M, conjugate gradients
     /// preconditioned by an earlier factorization) or `modified` Hessian.
     pub hessian: &'static str,
-    /// Conjugate-gradient iterations of the step (`exact-cg`), else 0.
+    /// Conjugate-gradient iterations of the step: those of the accepted
+    /// solve (`exact-cg`), or of a failed attempt before the factorization
+    /// (`exact`), else 0.
     pub krylov_iterations: usize,
 }
 
@@ -192,7 +194,7 @@ pub struct CrossfieldReport {
     /// Numeric Cholesky factorizations attempted (failed ones included).
     pub n_factorizations: usize,
     /// Preconditioned conjugate-gradient iterations (large systems reuse a
-    /// factorization over several Newton steps).
+    /// factorization over several Newton steps), failed attempts included.
     pub n_krylov_iterations: usize,
     /// Scaled residual at the end.
     pub final_residual: f64,

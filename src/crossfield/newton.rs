@@ -93,9 +93,13 @@ const FINAL_STALL_RESIDUAL: f64 = 1e-3;
 /// iterations) against 2.7 s without (40 factorizations); disk:129 (300k)
 /// 19 → 16 s.
 pub const KRYLOV_MIN_DOFS: usize = 200_000;
-/// CG iterations before giving up and refactoring (a solve with the factor
-/// costs a fifth of a refactorization at 300k unknowns, a twentieth at 3M).
-const KRYLOV_MAX_ITER: usize = 10;
+/// CG iterations before giving up and refactoring. A solve with the factor
+/// costs about a seventh of a refactorization at 300k unknowns (30 vs
+/// 190–290 ms) and a tenth at 3M (0.37 vs 3.7–4.8 s), and an attempt that
+/// runs out is paid on top of the refactorization: 10 → 5 took disk:129
+/// from 13.1 to 11.4–11.9 s (18 → 23 factorizations, 147 → 103 CG
+/// iterations counting failed attempts) and disk:408 from 194 to 179 s.
+const KRYLOV_MAX_ITER: usize = 5;
 /// From this many real unknowns on, the factorization is ordered by METIS
 /// nested dissection on the 2×2 blocks instead of AMD: disk:129 (300k
 /// unknowns) nnz(L) 19.4M → 13.6M, symbolic 0.2 → 0.7 s; disk:408 (3M)
@@ -203,22 +207,22 @@ impl<'a> NewtonSolver<'a> {
 
     /// Solve `A d = b` (`A`: lower-triangle `values`, already shifted) by
     /// conjugate gradients preconditioned with the last factorization, to
-    /// the relative residual `rtol` in at most `max_it` iterations. `None`
-    /// when `A` shows negative curvature or the iterations run out: the
-    /// caller refactors.
+    /// the relative residual `rtol` in at most `max_it` iterations; returns
+    /// the solution (`None` when `A` shows negative curvature or the
+    /// iterations run out: the caller refactors) and the iterations spent.
     fn pcg(
         &mut self,
         values: &[f64],
         b: &[f64],
         rtol: f64,
         max_it: usize,
-    ) -> Result<Option<(Vec<f64>, usize)>, CrossfieldError> {
+    ) -> Result<(Option<Vec<f64>>, usize), CrossfieldError> {
         let n = b.len();
         let dot = |a: &[f64], b: &[f64]| a.iter().zip(b).map(|(x, y)| x * y).sum::<f64>();
         let bnorm = dot(b, b).sqrt();
         let mut x = vec![0.0; n];
         if bnorm == 0.0 {
-            return Ok(Some((x, 0)));
+            return Ok((Some(x), 0));
         }
         let mut r = b.to_vec();
         let mut z = r.clone();
@@ -230,7 +234,7 @@ impl<'a> NewtonSolver<'a> {
             self.sys.sym_matvec(values, &p, &mut q);
             let pq = dot(&p, &q);
             if !(pq > 0.0) || !(rz > 0.0) {
-                return Ok(None);
+                return Ok((None, k - 1));
             }
             let alpha = rz / pq;
             for i in 0..n {
@@ -238,7 +242,7 @@ impl<'a> NewtonSolver<'a> {
                 r[i] -= alpha * q[i];
             }
             if dot(&r, &r).sqrt() <= rtol * bnorm {
-                return Ok(Some((x, k)));
+                return Ok((Some(x), k));
             }
             z.copy_from_slice(&r);
             self.solve(&mut z)?;
@@ -249,7 +253,7 @@ impl<'a> NewtonSolver<'a> {
                 p[i] = z[i] + beta * p[i];
             }
         }
-        Ok(None)
+        Ok((None, max_it))
     }
 
     /// Whether lowering the Levenberg–Marquardt parameter to `mu_new` keeps
@@ -405,10 +409,12 @@ impl<'a> NewtonSolver<'a> {
                 self.shift_values(&mut values, &mass, mu * inv_eps2);
                 let b: Vec<f64> = asm.grad.iter().map(|g| -g).collect();
                 let rtol = res.sqrt().clamp(1e-6, 0.1);
-                if let Some((x, k)) = self.pcg(&values, &b, rtol, KRYLOV_MAX_ITER)? {
-                    self.n_krylov_iterations += k;
+                let (x, k) = self.pcg(&values, &b, rtol, KRYLOV_MAX_ITER)?;
+                // Failed attempts count too: their solves were paid for.
+                self.n_krylov_iterations += k;
+                record.krylov_iterations = k;
+                if let Some(x) = x {
                     record.hessian = "exact-cg";
-                    record.krylov_iterations = k;
                     record.shift = mu;
                     if mu > 0.0 {
                         self.n_modified_steps += 1;
