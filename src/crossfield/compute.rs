@@ -23,7 +23,7 @@
 //! principal directions is solved at the final ε, and the candidate with the
 //! lower GL energy is kept: the energy, not a heuristic, decides. On the
 //! 20k-triangle torus at ε = h the singularity-free candidate wins (65.07 vs
-//! 80.48); at ε = 2h the 12-vortex one still does (58.47 vs 62.77), which is
+//! 80.49); at ε = 2h the 12-vortex one still does (58.47 vs 62.77), which is
 //! why the default ε is h.
 
 use super::energy::EnergyParams;
@@ -420,7 +420,7 @@ mod tests {
             (o.symmetry, o.boundary, o.epsilon),
             (6, BoundaryCondition::Weak, Some(0.1))
         );
-        assert_eq!(o.continuation_factor, 0.5);
+        assert_eq!(o.continuation_factor, 0.25);
         assert!(serde_json::from_str::<CrossfieldOptions>(r#"{"symetry": 4}"#).is_err());
         assert!(serde_json::from_str::<CrossfieldOptions>(r#"{"boundary": "soft"}"#).is_err());
     }

@@ -14,7 +14,10 @@
 //! `H + μ M/ε²` (M the CR mass), starting from the last μ (or 10⁻⁸) and
 //! raising it ×10 until the Cholesky factorization succeeds (the negative curvature of the
 //! penalty is bounded by `M/ε²`, so μ ≈ 1 always succeeds); lower it ×10
-//! after a full step, raise it ×10 after a strongly cut one. (×100 steps
+//! after a full step (unless the step's own curvature says the lower μ
+//! cannot factor, [`NewtonSolver::curvature_allows`]: one matrix-vector
+//! product instead of a failed factorization; disk_3k 56 → 52
+//! factorizations), raise it ×10 after a strongly cut one. (×100 steps
 //! overshoot: a stage whose Hessian needs μ ≈ 0.1 alternated between a
 //! failed factorization at 10⁻² and an over-damped step at 1, creeping for
 //! 20 iterations; the sphere_3k run went from 125 to 40 factorizations.) Starting low
@@ -37,6 +40,13 @@
 //! Newton, clamped to [10⁻⁶, 0.1]); negative curvature or
 //! [`KRYLOV_MAX_ITER`] iterations fall back to refactoring (with the μ
 //! raises above). disk:129: 68 → 30 factorizations for 50 CG iterations.
+//!
+//! Saddles. An intermediate stage stops at its (loose) tolerance only if
+//! the last factorization attempt did not fail: a failure means
+//! `H + μ' M/ε²` is indefinite, and a small residual there is the
+//! symmetric vortex cluster just before it splits (the residual grows again
+//! as it does), not a minimizer. Left to the next stage, the split happens
+//! with cores a quarter the size, which move more slowly.
 //!
 //! Final-stage plateau. At ε ≈ h the vortices sit in a landscape that is
 //! flat up to the grid's pinning: on the disk and the sphere, rotating the
@@ -83,9 +93,13 @@ const FINAL_STALL_RESIDUAL: f64 = 1e-3;
 /// iterations) against 2.7 s without (40 factorizations); disk:129 (300k)
 /// 19 → 16 s.
 pub const KRYLOV_MIN_DOFS: usize = 200_000;
-/// CG iterations before giving up and refactoring (a solve with the factor
-/// costs a fifth of a refactorization at 300k unknowns, a twentieth at 3M).
-const KRYLOV_MAX_ITER: usize = 10;
+/// CG iterations before giving up and refactoring. A solve with the factor
+/// costs about a seventh of a refactorization at 300k unknowns (30 vs
+/// 190–290 ms) and a tenth at 3M (0.37 vs 3.7–4.8 s), and an attempt that
+/// runs out is paid on top of the refactorization: 10 → 5 took disk:129
+/// from 13.1 to 11.4–11.9 s (18 → 23 factorizations, 147 → 103 CG
+/// iterations counting failed attempts) and disk:408 from 194 to 179 s.
+const KRYLOV_MAX_ITER: usize = 5;
 /// From this many real unknowns on, the factorization is ordered by METIS
 /// nested dissection on the 2×2 blocks instead of AMD: disk:129 (300k
 /// unknowns) nnz(L) 19.4M → 13.6M, symbolic 0.2 → 0.7 s; disk:408 (3M)
@@ -193,22 +207,22 @@ impl<'a> NewtonSolver<'a> {
 
     /// Solve `A d = b` (`A`: lower-triangle `values`, already shifted) by
     /// conjugate gradients preconditioned with the last factorization, to
-    /// the relative residual `rtol` in at most `max_it` iterations. `None`
-    /// when `A` shows negative curvature or the iterations run out: the
-    /// caller refactors.
+    /// the relative residual `rtol` in at most `max_it` iterations; returns
+    /// the solution (`None` when `A` shows negative curvature or the
+    /// iterations run out: the caller refactors) and the iterations spent.
     fn pcg(
         &mut self,
         values: &[f64],
         b: &[f64],
         rtol: f64,
         max_it: usize,
-    ) -> Result<Option<(Vec<f64>, usize)>, CrossfieldError> {
+    ) -> Result<(Option<Vec<f64>>, usize), CrossfieldError> {
         let n = b.len();
         let dot = |a: &[f64], b: &[f64]| a.iter().zip(b).map(|(x, y)| x * y).sum::<f64>();
         let bnorm = dot(b, b).sqrt();
         let mut x = vec![0.0; n];
         if bnorm == 0.0 {
-            return Ok(Some((x, 0)));
+            return Ok((Some(x), 0));
         }
         let mut r = b.to_vec();
         let mut z = r.clone();
@@ -220,7 +234,7 @@ impl<'a> NewtonSolver<'a> {
             self.sys.sym_matvec(values, &p, &mut q);
             let pq = dot(&p, &q);
             if !(pq > 0.0) || !(rz > 0.0) {
-                return Ok(None);
+                return Ok((None, k - 1));
             }
             let alpha = rz / pq;
             for i in 0..n {
@@ -228,7 +242,7 @@ impl<'a> NewtonSolver<'a> {
                 r[i] -= alpha * q[i];
             }
             if dot(&r, &r).sqrt() <= rtol * bnorm {
-                return Ok(Some((x, k)));
+                return Ok((Some(x), k));
             }
             z.copy_from_slice(&r);
             self.solve(&mut z)?;
@@ -239,7 +253,33 @@ impl<'a> NewtonSolver<'a> {
                 p[i] = z[i] + beta * p[i];
             }
         }
-        Ok(None)
+        Ok((None, max_it))
+    }
+
+    /// Whether lowering the Levenberg–Marquardt parameter to `mu_new` keeps
+    /// `H + μ_new M/ε²` positive along the last step `d`: the Rayleigh
+    /// quotient `q = ε² dᵀHd / dᵀMd` bounds the smallest eigenvalue of
+    /// `(H, M/ε²)` from above, so `q + μ_new ≤ 0` means the factorization
+    /// at `μ_new` would fail. `d = −(H + μM/ε²)⁻¹ g` is one step of inverse
+    /// iteration, so it leans towards the softest (possibly negative)
+    /// directions, which is what makes the test sharp in practice.
+    fn curvature_allows(
+        &self,
+        hess_values: &[f64],
+        mass: &[f64],
+        d: &[f64],
+        eps: f64,
+        mu_new: f64,
+    ) -> bool {
+        let mut hd = vec![0.0; d.len()];
+        self.sys.sym_matvec(hess_values, d, &mut hd);
+        let dhd: f64 = d.iter().zip(&hd).map(|(a, b)| a * b).sum();
+        let dmd: f64 = d.iter().zip(mass).map(|(a, m)| a * a * m).sum();
+        if !(dmd > 0.0) {
+            return true;
+        }
+        let q = eps * eps * dhd / dmd;
+        q + mu_new > 0.0
     }
 
     /// CR mass per real unknown.
@@ -304,6 +344,8 @@ impl<'a> NewtonSolver<'a> {
         let mut residuals: Vec<f64> = Vec::new();
         // Whether the last factorization (of this stage) may precondition CG.
         let mut precond_ok = false;
+        // Whether the last factorization attempts found `H + μM/ε²` indefinite.
+        let mut indefinite = false;
         let mut out = StageOutcome {
             iterations: 0,
             residual: f64::INFINITY,
@@ -344,7 +386,15 @@ impl<'a> NewtonSolver<'a> {
             };
             energies.push(asm.energy);
             residuals.push(res);
-            if res <= tol || !res.is_finite() || it == max_iter || stalled {
+            // An intermediate stage does not stop on the tolerance at a point
+            // where the last factorization attempt showed negative curvature:
+            // a small residual there is a saddle (the symmetric vortex cluster
+            // before it splits), not a minimizer, and the next stage would
+            // have to split it with smaller, slower cores (disk:408 with
+            // tolerance 10⁻³ stopped at ε = 0.18 with the residual rising
+            // from 9.7·10⁻⁴ and split at ε = 0.044 in 17 iterations).
+            let at_saddle = stop_on_stall && indefinite;
+            if (res <= tol && !at_saddle) || !res.is_finite() || it == max_iter || stalled {
                 out.converged = res <= tol || (stalled && !stop_on_stall);
                 out.plateau = stalled && !stop_on_stall && res > tol;
                 history.push(record);
@@ -359,10 +409,12 @@ impl<'a> NewtonSolver<'a> {
                 self.shift_values(&mut values, &mass, mu * inv_eps2);
                 let b: Vec<f64> = asm.grad.iter().map(|g| -g).collect();
                 let rtol = res.sqrt().clamp(1e-6, 0.1);
-                if let Some((x, k)) = self.pcg(&values, &b, rtol, KRYLOV_MAX_ITER)? {
-                    self.n_krylov_iterations += k;
+                let (x, k) = self.pcg(&values, &b, rtol, KRYLOV_MAX_ITER)?;
+                // Failed attempts count too: their solves were paid for.
+                self.n_krylov_iterations += k;
+                record.krylov_iterations = k;
+                if let Some(x) = x {
                     record.hessian = "exact-cg";
-                    record.krylov_iterations = k;
                     record.shift = mu;
                     if mu > 0.0 {
                         self.n_modified_steps += 1;
@@ -375,6 +427,7 @@ impl<'a> NewtonSolver<'a> {
                 None => {
                     // Exact Hessian + μ M, μ raised ×10 until the factorization succeeds.
                     let mut factored = false;
+                    indefinite = false;
                     for _ in 0..MAX_SHIFT_RAISES {
                         if self
                             .factor(asm.hess_values.clone(), &mass, mu * inv_eps2)
@@ -383,6 +436,7 @@ impl<'a> NewtonSolver<'a> {
                             factored = true;
                             break;
                         }
+                        indefinite = true;
                         mu = if mu == 0.0 { MU_FIRST } else { mu * MU_STEP };
                     }
                     if !factored {
@@ -439,7 +493,10 @@ impl<'a> NewtonSolver<'a> {
             precond_ok = alpha >= 0.25;
             // Trust the quadratic model more after a full step, less after a cut one.
             if alpha == 1.0 {
-                mu = if mu <= MU_FIRST { 0.0 } else { mu / MU_STEP };
+                let lower = if mu <= MU_FIRST { 0.0 } else { mu / MU_STEP };
+                if self.curvature_allows(&asm.hess_values, &mass, &d, eps, lower) {
+                    mu = lower;
+                }
             } else if alpha < 0.25 {
                 mu = if mu == 0.0 { MU_FIRST } else { mu * 10.0 };
             }
