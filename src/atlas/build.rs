@@ -137,7 +137,7 @@ pub fn build_atlas(
     // triangles in another order).
     let t1 = Instant::now();
     let (patches, input_curvature) = rayon::join(
-        || parameterize_patches(mesh, faces_of_model_face, manifold_input, opts, progress),
+        || parameterize_patches(mesh, &topo, faces_of_model_face, manifold_input, opts, progress),
         || principal_curvatures(mesh, &topo),
     );
     let (mut done, splits) = patches?;
@@ -173,6 +173,7 @@ pub fn build_atlas(
 /// level) until each has a valid map; the done patches and why splits happened.
 fn parameterize_patches(
     mesh: &TriMesh,
+    topo: &Topology,
     faces_of_model_face: Vec<Vec<FaceId>>,
     manifold_input: bool,
     opts: &AtlasOptions,
@@ -188,7 +189,7 @@ fn parameterize_patches(
         progress.check()?;
         let outcomes: Vec<Result<Outcome, AtlasError>> = pending
             .into_par_iter()
-            .map(|(faces, depth)| process_patch(mesh, faces, depth, manifold_input, opts, progress))
+            .map(|(faces, depth)| process_patch(mesh, topo, faces, depth, manifold_input, opts, progress))
             .collect();
         pending = Vec::new();
         for o in outcomes {
@@ -211,6 +212,7 @@ fn parameterize_patches(
 /// Check, refine, parameterize and verify one patch, or split it.
 fn process_patch(
     mesh: &TriMesh,
+    topo: &Topology,
     faces: Vec<FaceId>,
     depth: usize,
     manifold_input: bool,
@@ -218,7 +220,11 @@ fn process_patch(
     progress: &Progress,
 ) -> Result<Outcome, AtlasError> {
     progress.check()?;
-    let patch = PatchMesh::extract(mesh, &faces);
+    let is_whole = faces.len() == mesh.n_faces() && faces.iter().enumerate().all(|(i, f)| f.idx() == i);
+    let patch = is_whole
+        .then(|| PatchMesh::whole(mesh, topo))
+        .flatten()
+        .unwrap_or_else(|| PatchMesh::extract(mesh, &faces));
     let defect = if manifold_input {
         patch.defect_of_manifold_piece()
     } else {

@@ -46,6 +46,25 @@ pub enum PatchDefect {
 }
 
 impl PatchMesh {
+    /// The whole of `mesh` as one patch, reusing its topology `topo` (a
+    /// copy instead of a renumbering and a new topology: the first patch of
+    /// a closed surface without features is the whole input, 200k
+    /// triangles on the benchmark sphere, and this runs before anything can
+    /// run in parallel). `None` when some vertex has no triangle: then local
+    /// and global numberings differ and [`PatchMesh::extract`] is needed.
+    pub fn whole(mesh: &TriMesh, topo: &Topology) -> Option<Self> {
+        let n_v = mesh.n_vertices();
+        if (0..n_v).any(|v| topo.vertex_faces(VertexId::new(v)).is_empty()) {
+            return None;
+        }
+        Some(Self {
+            global_vertices: (0..n_v).map(VertexId::new).collect(),
+            global_faces: (0..mesh.n_faces()).map(FaceId::new).collect(),
+            mesh: mesh.clone(),
+            topo: topo.clone(),
+        })
+    }
+
     /// Extract the triangles `faces` of `mesh` as a local mesh.
     pub fn extract(mesh: &TriMesh, faces: &[FaceId]) -> Self {
         let mut global_vertices = Vec::with_capacity(faces.len() / 2 + 3);
