@@ -269,8 +269,10 @@ fn process_patch(
     // anyway: do not solve it to the end.
     let preview_distortion = std::cell::Cell::new(0.0);
     let hopeless = |uv: &[Vec2]| {
-        preview_distortion.set(area_distortion(work, uv));
-        may_split && preview_distortion.get() > PREVIEW_DISTORTION_MARGIN * opts.max_area_distortion
+        may_split && {
+            preview_distortion.set(area_distortion(work, uv));
+            preview_distortion.get() > PREVIEW_DISTORTION_MARGIN * opts.max_area_distortion
+        }
     };
     let first = mean_value_parameterization_unless(
         work,
