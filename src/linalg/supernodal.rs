@@ -73,42 +73,6 @@ impl std::fmt::Debug for SupernodalCholesky {
     }
 }
 
-/// Supernodal symbolic Cholesky analysis (ordering, elimination tree,
-/// supernodes and their row patterns) of the pattern of `a`, lower triangle
-/// read. Shared by [`SupernodalCholesky`] and [`super::SupernodalLu`], whose
-/// symmetric-pattern LU has the same structure.
-///
-/// # Errors
-/// [`LinalgError::Internal`] when the ordering or the analysis fails.
-pub(crate) fn supernodal_symbolic(
-    a: &SparseMatrix,
-    ordering: FillOrdering,
-) -> Result<SymbolicCholesky<usize>, LinalgError> {
-    let perm = match ordering {
-        FillOrdering::Amd => None,
-        FillOrdering::NestedDissection { block } => {
-            Some(super::ordering::nested_dissection(a.symbolic(), block)?)
-        }
-    };
-    let inv = perm.as_deref().map(super::ordering::inverse_permutation);
-    let ord = match (&perm, &inv) {
-        (Some(p), Some(q)) => {
-            SymmetricOrdering::Custom(faer::perm::PermRef::new_checked(p, q, a.nrows()))
-        }
-        _ => SymmetricOrdering::Amd,
-    };
-    factorize_symbolic_cholesky(
-        a.symbolic(),
-        Side::Lower,
-        ord,
-        CholeskySymbolicParams {
-            supernodal_flop_ratio_threshold: SupernodalThreshold::FORCE_SUPERNODAL,
-            ..Default::default()
-        },
-    )
-    .map_err(|e| LinalgError::Internal(format!("{e:?}")))
-}
-
 impl SupernodalCholesky {
     /// Symbolic analysis of the pattern of `a` (lower triangle).
     ///

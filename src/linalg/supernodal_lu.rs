@@ -32,13 +32,17 @@
 //! (for `L`) or rows (for `U`) of `p`; the symbolic fill guarantees that
 //! those supernodes store every position.
 
-use super::supernodal::{FillOrdering, supernodal_symbolic};
 use super::{LinalgError, LuSolver, SparseMatrix, Triplets};
+use faer::Side;
 use faer::linalg::matmul::matmul;
 use faer::linalg::triangular_solve::solve_unit_lower_triangular_in_place;
 use faer::prelude::{IntoConst, Reborrow, ReborrowMut};
+use faer::sparse::linalg::SupernodalThreshold;
 use faer::sparse::linalg::cholesky::supernodal::SymbolicSupernodalCholesky;
-use faer::sparse::linalg::cholesky::{SymbolicCholesky, SymbolicCholeskyRaw};
+use faer::sparse::linalg::cholesky::{
+    CholeskySymbolicParams, SymbolicCholesky, SymbolicCholeskyRaw, SymmetricOrdering,
+    factorize_symbolic_cholesky,
+};
 use faer::{Accum, MatMut, MatRef, Par};
 
 /// Below this many multiply-adds a Schur product is done by plain loops
@@ -84,7 +88,7 @@ impl<T: LuScalar> SupernodalLu<T> {
                 got: a.ncols(),
             });
         }
-        let symbolic = supernodal_symbolic(&symmetric_lower_pattern(a)?, FillOrdering::Amd)?;
+        let symbolic = supernodal_amd_analysis(&symmetric_lower_pattern(a)?)?;
         let SymbolicCholeskyRaw::Supernodal(sn) = symbolic.raw() else {
             // faer keeps a factor without any elimination work (a diagonal
             // matrix) simplicial even when told otherwise.
@@ -163,7 +167,6 @@ impl<T: LuScalar> SupernodalLu<T> {
     }
 
     /// Add the entries of `P A Pᵀ` to the `L` and `U` blocks (zeroed first).
-    #[inline(never)]
     fn scatter_matrix(&mut self, a: &SparseMatrix, inv: &[usize], owner: &[u32]) {
         self.lu.fill(T::zero());
         self.ut.fill(T::zero());
@@ -207,7 +210,6 @@ impl<T: LuScalar> SupernodalLu<T> {
     /// Factor supernode `s` in place (its Schur updates from earlier
     /// supernodes already applied): dense LU of the diagonal block, then
     /// `L[p, s] ← L[p, s] U_ss⁻¹` and `U[s, p] ← L_ss⁻¹ U[s, p]`.
-    #[inline(never)]
     fn factor_supernode(&mut self, s: usize, tiny: T) -> Result<(), LinalgError> {
         let sn = structure_of(&self.symbolic);
         let nc = sn.supernode_end()[s] - sn.supernode_begin()[s];
@@ -219,7 +221,6 @@ impl<T: LuScalar> SupernodalLu<T> {
 
     /// Subtract the Schur update `L[p, s] U[s, p]` of supernode `s` from the
     /// supernodes owning the rows and columns of `p`.
-    #[inline(never)]
     fn push_schur_update(
         &mut self,
         s: usize,
@@ -615,7 +616,7 @@ fn eliminate_panel<T: LuScalar>(
 }
 
 /// The supernodal structure of an analysis (always present: it is forced
-/// by [`supernodal_symbolic`]).
+/// by [`supernodal_amd_analysis`]).
 fn structure_of(symbolic: &SymbolicCholesky<usize>) -> &SymbolicSupernodalCholesky<usize> {
     match symbolic.raw() {
         SymbolicCholeskyRaw::Supernodal(sn) => sn,
@@ -627,7 +628,6 @@ fn structure_of(symbolic: &SymbolicCholesky<usize>) -> &SymbolicSupernodalCholes
 /// is `np × nc` with column stride `ld` and `U_p` (the transposed
 /// off-diagonal rows of `U`) is `np × nc` column-major: `schur[a + b np] =
 /// Σ_k L_p[a, k] U_p[b, k]`, the update of entry `(p[a], p[b])`.
-#[inline(never)]
 fn schur_product<T: LuScalar>(
     l: &[T],
     ld: usize,
@@ -655,6 +655,26 @@ fn schur_product<T: LuScalar>(
     let rhs = MatRef::from_column_major_slice(u, np, nc).transpose();
     let dst = MatMut::from_column_major_slice_mut(schur, np, np);
     matmul(dst, Accum::Replace, lhs, rhs, T::one(), Par::Seq);
+}
+
+/// faer's supernodal symbolic Cholesky analysis (AMD ordering, elimination
+/// tree, supernodes and their row patterns) of the lower triangle `a`; the
+/// supernodal variant is forced (faer's heuristic may pick the simplicial
+/// one, which has no supernodes to hold the LU's blocks).
+///
+/// # Errors
+/// [`LinalgError::Internal`] when the analysis fails.
+fn supernodal_amd_analysis(a: &SparseMatrix) -> Result<SymbolicCholesky<usize>, LinalgError> {
+    factorize_symbolic_cholesky(
+        a.symbolic(),
+        Side::Lower,
+        SymmetricOrdering::Amd,
+        CholeskySymbolicParams {
+            supernodal_flop_ratio_threshold: SupernodalThreshold::FORCE_SUPERNODAL,
+            ..Default::default()
+        },
+    )
+    .map_err(|e| LinalgError::Internal(format!("{e:?}")))
 }
 
 /// The lower triangle of the pattern of `A + Aᵀ` (values 1), the input of
