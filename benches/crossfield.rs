@@ -1,8 +1,11 @@
 //! Crossfield timings and singularity counts, side by side with Gmsh.
 //!
 //! ```text
-//! cargo bench --bench crossfield -- [--gmsh] [--eps X] [--n 6] [--weak] INPUT...
+//! cargo bench --bench crossfield -- [--gmsh] [-v] [--eps X] [--eps-h X] [--eps0 X]
+//!     [--factor X] [--ctol X] [--n 6] [--weak] [--max-its N] [--single-level] INPUT...
 //! ```
+//! `-v` prints the levels, every Newton iteration and the singularities;
+//! `--single-level` turns the multilevel continuation off.
 //! INPUT is an STL/OBJ path or a fixture: `disk:RINGS`, `sphere:LEVEL`,
 //! `torus:NMAJOR:NMINOR` (R = 1, r = 0.4), `lshape:N`, `square:N`.
 //! With `--gmsh`, also times `gmsh.model.mesh.computeCrossField()` on the
@@ -65,7 +68,10 @@ fn gmsh_seconds(path: &str) -> Option<(f64, bool)> {
 fn main() {
     meshatlas::linalg::use_sequential_kernels();
     // `cargo bench` passes `--bench`; it is not ours.
-    let mut args: Vec<String> = std::env::args().skip(1).filter(|a| a != "--bench").collect();
+    let mut args: Vec<String> = std::env::args()
+        .skip(1)
+        .filter(|a| a != "--bench")
+        .collect();
     let mut opts = CrossfieldOptions::default();
     let mut gmsh = false;
     let mut verbose = false;
@@ -82,6 +88,8 @@ fn main() {
             "--factor" => opts.continuation_factor = args.remove(0).parse().expect("factor"),
             "--ctol" => opts.continuation_tolerance = args.remove(0).parse().expect("ctol"),
             "--n" => opts.symmetry = args.remove(0).parse().expect("n"),
+            "--max-its" => opts.max_newton_iterations = args.remove(0).parse().expect("max-its"),
+            "--single-level" => opts.multilevel = false,
             _ => inputs.push(a),
         }
     }
@@ -139,9 +147,22 @@ fn main() {
                 field.report.candidate_energies,
                 field.report.curvature_anisotropy
             );
+            for l in &field.report.levels {
+                eprintln!(
+                    "  level {} faces {} edges {} eps {:?} its {} factorizations {} {:.3} s",
+                    l.level,
+                    l.n_faces,
+                    l.n_edges,
+                    l.epsilon_schedule,
+                    l.iterations,
+                    l.n_factorizations,
+                    l.seconds
+                );
+            }
             for h in &field.report.history {
                 eprintln!(
-                    "  eps {:.4} it {:2} res {:.3e} E {:.9} step {:.3} mu {:.0e} {} {}",
+                    "  L{} eps {:.4} it {:2} res {:.3e} E {:.9} step {:.3} mu {:.0e} {} {}",
+                    h.level,
                     h.epsilon,
                     h.iteration,
                     h.residual,

@@ -381,3 +381,81 @@ fn weak_boundary_condition_on_the_disk() {
     }
     assert!(max_dev > 0.0 && max_dev < 0.5, "{max_dev}");
 }
+
+/// Multilevel options: coarsen from `min_faces` triangles on.
+fn multilevel(min_faces: usize) -> CrossfieldOptions {
+    CrossfieldOptions {
+        multilevel_min_faces: min_faces,
+        ..Default::default()
+    }
+}
+
+#[test]
+fn multilevel_continuation_finds_the_single_level_answer_on_the_disk() {
+    let mesh = fixtures::disk(80);
+    let n = mesh.n_faces();
+    let multi = crossfield(&mesh, &multilevel(20_000));
+    let single = crossfield(
+        &mesh,
+        &CrossfieldOptions {
+            multilevel: false,
+            ..Default::default()
+        },
+    );
+    // Two levels: a coarse one (about n/16 triangles, ε ≥ 4h) and the input.
+    let levels = &multi.report.levels;
+    assert_eq!(levels.len(), 2, "{levels:?}");
+    assert_eq!((levels[0].level, levels[1].level), (1, 0));
+    assert_eq!(levels[1].n_faces, n);
+    assert!(
+        levels[0].n_faces > n / 25 && levels[0].n_faces < n / 10,
+        "{levels:?}"
+    );
+    assert!(levels[0].epsilon_schedule.last() > levels[1].epsilon_schedule.first());
+    assert_eq!(single.report.levels.len(), 1);
+    assert!(multi.report.history.iter().any(|r| r.level == 1));
+    // Same answer: 4 vortices of index 1/4 on the optimal circle.
+    let h = 1.0 / 80.0;
+    let r_star = optimal_radius(4);
+    for field in [&multi, &single] {
+        assert_poincare_hopf(field);
+        assert!(field.report.converged);
+        assert_eq!(field.singularities.len(), 4, "{:?}", field.singularities);
+        for s in &field.singularities {
+            assert_eq!(s.index, 0.25);
+            assert!((s.position.norm() - r_star).abs() < 2.0 * h, "{s:?}");
+        }
+    }
+    let radius = |f: &Crossfield| {
+        f.singularities
+            .iter()
+            .map(|s| s.position.norm())
+            .sum::<f64>()
+            / 4.0
+    };
+    assert!((radius(&multi) - radius(&single)).abs() < h);
+}
+
+#[test]
+fn multilevel_continuation_keeps_the_antiprism_on_the_sphere() {
+    // Closed surface: the initial eigenvector is computed on the coarse level.
+    let mesh = fixtures::icosphere(6);
+    let field = crossfield(&mesh, &multilevel(40_000));
+    assert_eq!(field.report.levels.len(), 2, "{:?}", field.report.levels);
+    assert_poincare_hopf(&field);
+    assert_eq!(
+        field.singularities.len(),
+        8,
+        "{:?}",
+        field.report.singularity_counts
+    );
+    assert!(field.singularities.iter().all(|s| s.index == 0.25));
+    let p: Vec<Vec3> = field
+        .singularities
+        .iter()
+        .map(|s| s.position.normalize())
+        .collect();
+    for d in neighbour_distances(&p) {
+        assert!(d[3] / d[0] < 1.2 && d[4] / d[3] > 1.2, "{d:?}");
+    }
+}

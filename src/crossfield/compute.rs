@@ -32,8 +32,13 @@ use super::initial::{InitialKind, initial_field, principal_curvature_field};
 use super::newton::NewtonSolver;
 use super::singularities::vertex_indices;
 use super::system::NewtonSystem;
-use super::{BoundaryCondition, Crossfield, CrossfieldError, CrossfieldOptions, CrossfieldReport};
+use super::transfer::transfer_to_fine;
+use super::{
+    BoundaryCondition, Crossfield, CrossfieldError, CrossfieldOptions, CrossfieldReport,
+    LevelReport,
+};
 use crate::geom::Vec3;
+use crate::mesh::decimate::decimate;
 use crate::mesh::summary::topology_summary;
 use crate::mesh::{FaceId, Topology, TriMesh};
 use crate::progress::Progress;
@@ -92,18 +97,180 @@ pub fn validate_options(opts: &CrossfieldOptions) -> Result<(), CrossfieldError>
 }
 
 /// The continuation schedule from `eps0` down to `eps`. An intermediate ε
-/// within 10 % of the final one is dropped: it would cost a stage (a
-/// factorization and a few Newton steps) for nothing (disk:408 had stages at
-/// 0.002762 and 0.002752).
+/// within a factor `1/√factor` of the final one is dropped: it would cost a
+/// stage (a factorization and a few Newton steps) to shrink the cores by
+/// less than the last step does anyway (disk:408 had stages at 0.002762 and
+/// 0.002752; a coarse level ending at 0.0348 had one at 0.0442).
 pub fn epsilon_schedule(eps0: f64, eps: f64, factor: f64) -> Vec<f64> {
     let mut s = Vec::new();
     let mut e = eps0;
-    while e > eps * 1.1 && s.len() < 200 {
+    while e > eps / factor.sqrt() && s.len() < 200 {
         s.push(e);
         e *= factor;
     }
     s.push(eps);
     s
+}
+
+/// A coarse level takes the stages with ε at least this many times the
+/// finest ε of the level below (rounded up to a power of
+/// `1/continuation_factor`): 4 with the default factor, i.e. 16 times fewer
+/// triangles per level.
+pub const COARSE_EPSILON_RATIO: f64 = 2.5;
+/// A coarse level needs at least this many triangles to resolve its ε.
+const MIN_COARSE_FACES: usize = 2_000;
+
+/// One mesh of the multilevel continuation and its discretization.
+struct Level<'m> {
+    mesh: &'m TriMesh,
+    topo: &'m Topology,
+    /// 0 for the input, k for its k-th coarsening.
+    depth: usize,
+    disc: Discretization,
+    /// Boundary and feature edges of this mesh.
+    aligned: Vec<bool>,
+    /// Edges whose value is fixed (strong condition, or no energy).
+    fixed: Vec<bool>,
+    /// Edges carrying the weak boundary term.
+    weak_edges: Vec<bool>,
+    /// Aligned edges with energy (they constrain the initial field).
+    constrained: Vec<bool>,
+    sys: NewtonSystem,
+    /// Bounding-box diagonal (scales the weak term).
+    diag: f64,
+}
+
+impl<'m> Level<'m> {
+    /// Discretize `mesh` with its `aligned` edges.
+    fn new(
+        mesh: &'m TriMesh,
+        topo: &'m Topology,
+        aligned: Vec<bool>,
+        depth: usize,
+        opts: &CrossfieldOptions,
+    ) -> Result<Self, CrossfieldError> {
+        check_orientation(mesh, topo)?;
+        let disc = Discretization::new(mesh, topo, opts.symmetry);
+        // Edges without any non-degenerate triangle have no energy: fix them.
+        let orphan: Vec<bool> = (0..topo.n_edges())
+            .map(|e| disc.mass_per_edge[e] == 0.0)
+            .collect();
+        let strong = opts.boundary == BoundaryCondition::Strong;
+        let fixed: Vec<bool> = (0..topo.n_edges())
+            .map(|e| orphan[e] || (strong && aligned[e]))
+            .collect();
+        let constrained: Vec<bool> = aligned
+            .iter()
+            .zip(&orphan)
+            .map(|(&a, &o)| a && !o)
+            .collect();
+        let weak_edges = if strong {
+            vec![false; topo.n_edges()]
+        } else {
+            constrained.clone()
+        };
+        let sys = NewtonSystem::new(topo, &disc, &fixed)?;
+        let diag = mesh
+            .bounding_box()
+            .map_or(1.0, |b| b.diagonal())
+            .max(f64::MIN_POSITIVE);
+        Ok(Self {
+            mesh,
+            topo,
+            depth,
+            disc,
+            aligned,
+            fixed,
+            weak_edges,
+            constrained,
+            sys,
+            diag,
+        })
+    }
+
+    /// Energy parameters at coherence length `e`.
+    fn params(&self, e: f64, opts: &CrossfieldOptions) -> EnergyParams<'_> {
+        EnergyParams {
+            inv_eps2: 1.0 / (e * e),
+            weak_coef: if opts.boundary == BoundaryCondition::Strong {
+                0.0
+            } else {
+                opts.weak_weight * self.diag / (e * e)
+            },
+            weak_edges: &self.weak_edges,
+        }
+    }
+
+    /// Reset the fixed edges to the aligned value 1.
+    fn reset_fixed(&self, f: &mut [C64]) {
+        for (z, &fx) in f.iter_mut().zip(&self.fixed) {
+            if fx {
+                *z = C64::new(1.0, 0.0);
+            }
+        }
+    }
+}
+
+/// A coarsened copy of a level's mesh.
+struct CoarseMesh {
+    mesh: TriMesh,
+    topo: Topology,
+    aligned: Vec<bool>,
+}
+
+/// Coarsen `level` to about `target_faces` triangles, keeping its aligned
+/// edges (their endpoints are locked, so each survives as a coarse edge).
+/// `None` when the result would not serve: too little reduction, or a
+/// different topology (Euler characteristic, orientation).
+fn coarsen(level: &Level, target_faces: usize) -> Option<CoarseMesh> {
+    // Edges up to 1.5 times the mean length of a uniform mesh with the target
+    // number of triangles.
+    let ratio = (level.mesh.n_faces() as f64 / target_faces.max(1) as f64).sqrt();
+    let max_edge = 1.5 * ratio * level.mesh.mean_edge_length();
+    let d = decimate(
+        level.mesh,
+        level.topo,
+        &level.aligned,
+        target_faces,
+        max_edge,
+    )
+    .ok()?;
+    if d.mesh.n_faces() * 4 > level.mesh.n_faces() * 3 {
+        return None;
+    }
+    let topo = Topology::new(&d.mesh);
+    topo.validate(&d.mesh).ok()?;
+    check_orientation(&d.mesh, &topo).ok()?;
+    let chi = |m: &TriMesh, t: &Topology| topology_summary(m, t).euler_characteristic;
+    if chi(&d.mesh, &topo) != chi(level.mesh, level.topo) {
+        return None;
+    }
+    let aligned = topo
+        .edges
+        .iter()
+        .map(|&[a, b]| {
+            let (fa, fb) = (d.fine_vertex[a.idx()], d.fine_vertex[b.idx()]);
+            level
+                .topo
+                .edge_between(fa, fb)
+                .is_some_and(|e| level.aligned[e.idx()])
+        })
+        .collect();
+    Some(CoarseMesh {
+        mesh: d.mesh,
+        topo,
+        aligned,
+    })
+}
+
+/// The ε down to which a coarse level of a mesh solved to `eps` works:
+/// `eps / factor^k`, the smallest such ratio reaching [`COARSE_EPSILON_RATIO`].
+fn coarse_epsilon(eps: f64, factor: f64) -> f64 {
+    let mut e = eps;
+    while e < COARSE_EPSILON_RATIO * eps {
+        e /= factor;
+    }
+    e
 }
 
 /// Compute the Ginzburg–Landau crossfield of `mesh` with `aligned_edges`
@@ -131,122 +298,70 @@ pub fn compute_crossfield(
             got: aligned_edges.len(),
         });
     }
-    check_orientation(mesh, topo)?;
     let n = opts.symmetry;
-    let disc = Discretization::new(mesh, topo, n);
-    // Edges without any non-degenerate triangle have no energy: fix them.
-    let orphan: Vec<bool> = (0..topo.n_edges())
-        .map(|e| disc.mass_per_edge[e] == 0.0)
-        .collect();
-    let strong = opts.boundary == BoundaryCondition::Strong;
-    let fixed: Vec<bool> = (0..topo.n_edges())
-        .map(|e| orphan[e] || (strong && aligned_edges[e]))
-        .collect();
-    let weak_edges: Vec<bool> = if strong {
-        vec![false; topo.n_edges()]
-    } else {
-        aligned_edges
-            .iter()
-            .zip(&orphan)
-            .map(|(&a, &o)| a && !o)
-            .collect()
-    };
-    let constrained: Vec<bool> = aligned_edges
-        .iter()
-        .zip(&orphan)
-        .map(|(&a, &o)| a && !o)
-        .collect();
-    let sys = NewtonSystem::new(topo, &disc, &fixed)?;
-
-    let diag = mesh
-        .bounding_box()
-        .map_or(1.0, |b| b.diagonal())
-        .max(f64::MIN_POSITIVE);
+    let level = Level::new(mesh, topo, aligned_edges.to_vec(), 0, opts)?;
     let h = mesh.mean_edge_length();
     let eps = opts.epsilon.unwrap_or(opts.epsilon_per_edge_length * h);
-    let eps0 = opts.epsilon_start.unwrap_or(0.25 * diag).max(eps);
-    let mut schedule = epsilon_schedule(eps0, eps, opts.continuation_factor);
-    let params_for = |e: f64| EnergyParams {
-        inv_eps2: 1.0 / (e * e),
-        weak_coef: if strong {
-            0.0
-        } else {
-            opts.weak_weight * diag / (e * e)
-        },
-        weak_edges: &weak_edges,
-    };
+    let eps0 = opts.epsilon_start.unwrap_or(0.25 * level.diag).max(eps);
 
     let mut f = vec![C64::new(1.0, 0.0); topo.n_edges()];
     let mut report = CrossfieldReport {
         symmetry: n,
         n_edges: topo.n_edges(),
-        n_fixed_edges: fixed.iter().filter(|&&x| x).count(),
+        n_fixed_edges: level.fixed.iter().filter(|&&x| x).count(),
         n_aligned_edges: aligned_edges.iter().filter(|&&x| x).count(),
-        n_degenerate_faces: disc.n_degenerate_faces,
+        n_degenerate_faces: level.disc.n_degenerate_faces,
         epsilon: eps,
-        epsilon_schedule: schedule.clone(),
         ..Default::default()
     };
-    let mut solver = NewtonSolver::new(topo, &disc, &sys);
-    if sys.n_dofs() > 0 {
-        let kind = initial_field(&mut solver, &mut f, &params_for(schedule[0]), &constrained)?;
+    let mut solver = NewtonSolver::new(topo, &level.disc, &level.sys);
+    if level.sys.n_dofs() > 0 {
+        progress.set(0.05);
+        // Closed surfaces without aligned edges may get a second candidate:
+        // leave it the last quarter.
+        let no_aligned = !level.constrained.iter().any(|&c| c);
+        let first = progress.sub(0.05, if no_aligned { 0.7 } else { 0.95 });
+        let kind = solve_levels(
+            &level,
+            &mut solver,
+            &mut f,
+            eps,
+            eps0,
+            opts,
+            &first,
+            &mut report,
+        )?;
         report.initial_guess = match kind {
             InitialKind::Laplace => "laplace",
             InitialKind::Eigenvector(_) => "eigenvector",
             InitialKind::Mixed(_) => "laplace+eigenvector",
         }
         .into();
-        // Without boundary data, f = 0 is the GL minimizer as long as
-        // 1/ε² ≤ λ₁ (the smallest eigenvalue of the connection Laplacian):
-        // start the continuation where 1/ε₀² = 4 λ₁, i.e. |f|² ≈ 3/4.
-        if let InitialKind::Eigenvector(l1) | InitialKind::Mixed(l1) = kind
-            && l1 > 0.0
-            && opts.epsilon_start.is_none()
-        {
-            let e0 = (0.5 / l1.sqrt()).min(eps0).max(eps);
-            schedule = epsilon_schedule(e0, eps, opts.continuation_factor);
-            report.epsilon_schedule = schedule.clone();
-        }
+        report
+            .candidate_energies
+            .push((report.initial_guess.clone(), report.energy));
         // Closed surfaces without any aligned edge get a second candidate,
         // unless their curvature is (nearly) isotropic.
         let curvature = if matches!(kind, InitialKind::Eigenvector(_)) {
-            let (g, anisotropy) = principal_curvature_field(mesh, topo, &disc);
+            let (g, anisotropy) = principal_curvature_field(mesh, topo, &level.disc);
             report.curvature_anisotropy = anisotropy;
             (anisotropy >= MIN_ANISOTROPY).then_some(g)
         } else {
             None
         };
-        let two = curvature.is_some();
-        progress.set(0.05);
-        let first = progress.sub(0.05, if two { 0.7 } else { 0.95 });
-        run_continuation(
-            &mut solver,
-            &mut f,
-            &schedule,
-            &params_for,
-            opts,
-            &first,
-            &mut report,
-        )?;
-        report
-            .candidate_energies
-            .push((report.initial_guess.clone(), report.energy));
         if let Some(mut g) = curvature {
             // Candidate 2: aligned with the principal curvature directions,
             // solved at the final ε only (a continuation from large ε would
             // bring back the eigenvector's singularities). Keep the lower energy.
-            for (e, &fx) in fixed.iter().enumerate() {
-                if fx {
-                    g[e] = C64::new(1.0, 0.0);
-                }
-            }
+            level.reset_fixed(&mut g);
             let mut alt = CrossfieldReport::default();
             let second = progress.sub(0.7, 0.95);
             run_continuation(
+                &level,
                 &mut solver,
                 &mut g,
                 &[eps],
-                &params_for,
+                None,
                 opts,
                 &second,
                 &mut alt,
@@ -268,15 +383,19 @@ pub fn compute_crossfield(
     } else {
         report.initial_guess = "none (all edges fixed)".into();
         report.converged = true;
-        report.energy = super::energy::total_energy(&disc, topo, &f, &params_for(eps));
+        report.energy =
+            super::energy::total_energy(&level.disc, topo, &f, &level.params(eps, opts));
     }
-    report.n_modified_steps = solver.n_modified_steps;
-    report.n_factorizations = solver.n_factorizations;
-    report.n_krylov_iterations = solver.n_krylov_iterations;
+    report.n_modified_steps += solver.n_modified_steps;
+    report.n_factorizations += solver.n_factorizations;
+    report.n_krylov_iterations += solver.n_krylov_iterations;
+    if let Some(l) = report.levels.last_mut() {
+        l.n_factorizations = solver.n_factorizations;
+    }
 
-    let idx = vertex_indices(mesh, topo, &disc, &f);
+    let idx = vertex_indices(mesh, topo, &level.disc, &f);
     let chi = topology_summary(mesh, topo).euler_characteristic;
-    let (cross_per_face, norm_per_face) = face_crosses(mesh, topo, &disc, &f);
+    let (cross_per_face, norm_per_face) = face_crosses(mesh, topo, &level.disc, &f);
     report.n_singularities = idx.singularities.len();
     for s in &idx.singularities {
         *report
@@ -301,22 +420,134 @@ pub fn compute_crossfield(
     })
 }
 
-/// Newton minimizations along the ε `schedule`, accumulating into `report`.
-fn run_continuation<'p>(
+/// The continuation from `eps0` down to `eps` on `level` (field `f`, solver
+/// `solver` of that level), multilevel when the mesh is large: the stages
+/// with ε ≥ ε_c ([`coarse_epsilon`]) run on a copy coarsened in proportion
+/// ((ε/ε_c)² of the triangles, so ε_c is resolved as well as ε is here),
+/// itself solved recursively; the field is then transferred to this mesh
+/// ([`transfer_to_fine`]) and the remaining stages run here. The large-ε
+/// stages (the vortices entering and settling, most of the Newton
+/// iterations) thus cost a fraction of a fine factorization each. Returns
+/// the kind of initial field (computed on the coarsest level).
+#[allow(clippy::too_many_arguments)]
+fn solve_levels(
+    level: &Level,
+    solver: &mut NewtonSolver,
+    f: &mut [C64],
+    eps: f64,
+    eps0: f64,
+    opts: &CrossfieldOptions,
+    progress: &Progress,
+    report: &mut CrossfieldReport,
+) -> Result<InitialKind, CrossfieldError> {
+    let t0 = Instant::now();
+    let mut coarse_seconds = 0.0;
+    let eps_c = coarse_epsilon(eps, opts.continuation_factor);
+    let target = (level.mesh.n_faces() as f64 * (eps / eps_c).powi(2)) as usize;
+    let coarse = if opts.multilevel
+        && level.mesh.n_faces() >= opts.multilevel_min_faces
+        && target >= MIN_COARSE_FACES
+        && eps_c < eps0
+    {
+        coarsen(level, target)
+    } else {
+        None
+    };
+    let (kind, previous, schedule) = match &coarse {
+        Some(c) => {
+            let cl = Level::new(&c.mesh, &c.topo, c.aligned.clone(), level.depth + 1, opts)?;
+            let mut cs = NewtonSolver::new(&c.topo, &cl.disc, &cl.sys);
+            let mut fc = vec![C64::new(1.0, 0.0); c.topo.n_edges()];
+            let t_coarse = Instant::now();
+            let kind = solve_levels(
+                &cl,
+                &mut cs,
+                &mut fc,
+                eps_c,
+                eps0,
+                opts,
+                &progress.sub(0.0, 0.3),
+                report,
+            )?;
+            coarse_seconds = t_coarse.elapsed().as_secs_f64();
+            report.n_modified_steps += cs.n_modified_steps;
+            report.n_factorizations += cs.n_factorizations;
+            report.n_krylov_iterations += cs.n_krylov_iterations;
+            if let Some(l) = report.levels.last_mut() {
+                l.n_factorizations = cs.n_factorizations;
+            }
+            let mut g = transfer_to_fine(&c.mesh, &c.topo, &cl.disc, &fc, level.mesh, level.topo);
+            level.reset_fixed(&mut g);
+            f.copy_from_slice(&g);
+            let schedule = epsilon_schedule(eps_c, eps, opts.continuation_factor)[1..].to_vec();
+            (kind, Some(eps_c), schedule)
+        }
+        None => {
+            let mut schedule = epsilon_schedule(eps0, eps, opts.continuation_factor);
+            let kind = initial_field(
+                solver,
+                f,
+                &level.params(schedule[0], opts),
+                &level.constrained,
+            )?;
+            // Without boundary data, f = 0 is the GL minimizer as long as
+            // 1/ε² ≤ λ₁ (the smallest eigenvalue of the connection Laplacian):
+            // start the continuation where 1/ε₀² = 4 λ₁, i.e. |f|² ≈ 3/4.
+            if let InitialKind::Eigenvector(l1) | InitialKind::Mixed(l1) = kind
+                && l1 > 0.0
+                && opts.epsilon_start.is_none()
+            {
+                let e0 = (0.5 / l1.sqrt()).min(eps0).max(eps);
+                schedule = epsilon_schedule(e0, eps, opts.continuation_factor);
+            }
+            (kind, None, schedule)
+        }
+    };
+    let stages = if coarse.is_some() {
+        progress.sub(0.3, 1.0)
+    } else {
+        progress.clone()
+    };
+    let iterations = report.iterations;
+    run_continuation(level, solver, f, &schedule, previous, opts, &stages, report)?;
+    report.epsilon_schedule.extend_from_slice(&schedule);
+    report.levels.push(LevelReport {
+        level: level.depth,
+        n_faces: level.mesh.n_faces(),
+        n_edges: level.topo.n_edges(),
+        epsilon_schedule: schedule,
+        iterations: report.iterations - iterations,
+        n_factorizations: 0,
+        seconds: t0.elapsed().as_secs_f64() - coarse_seconds,
+    });
+    Ok(kind)
+}
+
+/// Newton minimizations along the ε `schedule` on `level`, accumulating into
+/// `report`; `previous` is the ε the field `f` was solved at (`None` for a
+/// fresh initial field). The last stage on the input mesh is solved to
+/// `tolerance`, every other to `continuation_tolerance`.
+#[allow(clippy::too_many_arguments)]
+fn run_continuation(
+    level: &Level,
     solver: &mut NewtonSolver,
     f: &mut [C64],
     schedule: &[f64],
-    params_for: &dyn Fn(f64) -> EnergyParams<'p>,
+    previous: Option<f64>,
     opts: &CrossfieldOptions,
     progress: &Progress,
     report: &mut CrossfieldReport,
 ) -> Result<(), CrossfieldError> {
     let n_stages = schedule.len();
+    // Only the input mesh has a final stage; a coarse level's last ε is an
+    // intermediate one of the whole continuation.
+    let finest = level.depth == 0;
+    let mut previous = previous;
     for (s, &e) in schedule.iter().enumerate() {
-        if s > 0 {
-            shrink_cores(solver, f, schedule[s - 1] / e);
+        if let Some(p) = previous {
+            shrink_cores(solver, f, p / e);
         }
-        let last = s + 1 == n_stages;
+        let last = finest && s + 1 == n_stages;
         let tol = if last {
             opts.tolerance
         } else {
@@ -324,9 +555,19 @@ fn run_continuation<'p>(
         };
         let stage_progress =
             progress.sub(s as f64 / n_stages as f64, (s + 1) as f64 / n_stages as f64);
+        let first_record = report.history.len();
+        let singular = |g: &[C64]| {
+            vertex_indices(level.mesh, level.topo, &level.disc, g)
+                .index_per_vertex
+                .iter()
+                .enumerate()
+                .filter(|&(_, &k)| k != 0)
+                .map(|(v, &k)| (v as u32, k))
+                .collect()
+        };
         let out = solver.minimize(
             f,
-            &params_for(e),
+            &level.params(e, opts),
             e,
             tol,
             if last {
@@ -335,16 +576,21 @@ fn run_continuation<'p>(
                 (opts.max_newton_iterations / 3).max(10)
             },
             !last,
-            if s > 0 { 1.0 } else { 0.0 },
+            if previous.is_some() { 1.0 } else { 0.0 },
+            Some(&singular),
             &stage_progress,
             &mut report.history,
         )?;
+        for r in &mut report.history[first_record..] {
+            r.level = level.depth;
+        }
         report.iterations += out.iterations;
         report.final_residual = out.residual;
         report.energy = out.energy;
         report.converged = out.converged;
         report.stopped_on_plateau = out.plateau;
         stage_progress.set(1.0);
+        previous = Some(e);
     }
     Ok(())
 }
@@ -525,8 +771,14 @@ mod tests {
     #[test]
     fn schedule_ends_at_the_final_epsilon() {
         let s = epsilon_schedule(1.0, 0.1, 0.5);
-        assert_eq!(s, vec![1.0, 0.5, 0.25, 0.125, 0.1]);
+        // 0.125 is within √2 of 0.1: dropped.
+        assert_eq!(s, vec![1.0, 0.5, 0.25, 0.1]);
         assert_eq!(epsilon_schedule(0.1, 0.1, 0.5), vec![0.1]);
         assert_eq!(epsilon_schedule(0.4, 0.099, 0.5), vec![0.4, 0.2, 0.099]);
+        assert_eq!(
+            epsilon_schedule(0.8, 0.04, 0.25),
+            vec![0.8, 0.2, 0.04],
+            "0.05 is within 2 of 0.04"
+        );
     }
 }

@@ -20,6 +20,7 @@ pub mod newton;
 pub mod output;
 pub mod singularities;
 pub mod system;
+pub mod transfer;
 
 pub use compute::{compute_crossfield, validate_options};
 pub use output::{write_crossfield_msh, write_crossfield_vtu, write_singularities_json};
@@ -87,6 +88,18 @@ pub struct CrossfieldOptions {
     /// Maximum Newton iterations of the final ε (intermediate ε: a third of
     /// it, at least 10). Default 60.
     pub max_newton_iterations: usize,
+    /// Solve the stages with ε at least [`compute::COARSE_EPSILON_RATIO`] ×
+    /// the final ε (rounded up to a power of `1/continuation_factor`) on a
+    /// coarsened copy of the surface whose mean edge length is in the
+    /// same proportion, recursively, and transfer the field to the finer
+    /// mesh for the remaining stages ([`compute`], multilevel
+    /// continuation), on meshes of at least `multilevel_min_faces`
+    /// triangles. Default true.
+    pub multilevel: bool,
+    /// Triangles from which a mesh is coarsened for the multilevel
+    /// continuation. Default 40000: below, a factorization costs less than
+    /// coarsening (torus_20k, the 3k meshes).
+    pub multilevel_min_faces: usize,
 }
 
 impl Default for CrossfieldOptions {
@@ -102,6 +115,8 @@ impl Default for CrossfieldOptions {
             tolerance: 1e-8,
             continuation_tolerance: 1e-3,
             max_newton_iterations: 60,
+            multilevel: true,
+            multilevel_min_faces: 40_000,
         }
     }
 }
@@ -164,6 +179,28 @@ pub struct NewtonRecord {
     /// solve (`exact-cg`), or of a failed attempt before the factorization
     /// (`exact`), else 0.
     pub krylov_iterations: usize,
+    /// Mesh level of the step: 0 the input, 1 its first coarsening, ...
+    pub level: usize,
+}
+
+/// One mesh of the multilevel continuation.
+#[derive(Debug, Clone, Serialize, Default)]
+pub struct LevelReport {
+    /// 0 for the input mesh, k for its k-th coarsening.
+    pub level: usize,
+    /// Triangles of the mesh.
+    pub n_faces: usize,
+    /// Edges (CR unknowns, fixed ones included).
+    pub n_edges: usize,
+    /// ε of the stages solved on this mesh.
+    pub epsilon_schedule: Vec<f64>,
+    /// Newton iterations on this mesh.
+    pub iterations: usize,
+    /// Numeric factorizations on this mesh (failed ones included).
+    pub n_factorizations: usize,
+    /// Wall time on this mesh, seconds: its stages, plus coarsening it and
+    /// transferring the field from the coarser level (not that level's stages).
+    pub seconds: f64,
 }
 
 /// What the crossfield stage did.
@@ -202,8 +239,11 @@ pub struct CrossfieldReport {
     pub energy: f64,
     /// Final ε (model units).
     pub epsilon: f64,
-    /// ε of each continuation stage.
+    /// ε of each continuation stage, over all levels.
     pub epsilon_schedule: Vec<f64>,
+    /// The meshes of the multilevel continuation, coarsest first (one entry,
+    /// the input, when it was solved on one level).
+    pub levels: Vec<LevelReport>,
     /// True when the final stage reached `tolerance`, or stopped on the
     /// discretization's plateau (`stopped_on_plateau`).
     pub converged: bool,

@@ -33,6 +33,14 @@ pub enum MeshError {
     /// A derived structure disagrees with the mesh it was built from.
     #[error("inconsistent topology: {0}")]
     Inconsistent(String),
+    /// A per-element input has the wrong number of entries.
+    #[error("{what} has {found} entries, expected one per {per} ({expected})")]
+    LengthMismatch {
+        what: &'static str,
+        per: &'static str,
+        expected: usize,
+        found: usize,
+    },
     /// A tetrahedron has non-positive volume.
     #[error("tetrahedron {tet} has non-positive signed volume {volume:e}")]
     InvertedTet { tet: usize, volume: f64 },

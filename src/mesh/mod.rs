@@ -14,6 +14,7 @@
 
 pub mod boundary;
 pub mod components;
+pub mod decimate;
 pub mod error;
 pub mod fixtures;
 pub mod ids;
