@@ -198,8 +198,9 @@ pub struct LevelReport {
     pub iterations: usize,
     /// Numeric factorizations on this mesh (failed ones included).
     pub n_factorizations: usize,
-    /// Wall time on this mesh, seconds: its stages, plus coarsening it and
-    /// transferring the field from the coarser level (not that level's stages).
+    /// Wall time on this mesh, seconds: its stages, from the moment the
+    /// coarser levels are done (coarsening, their solves and the transfer
+    /// run beside this level's symbolic analysis and are not counted here).
     pub seconds: f64,
 }
 

@@ -11,7 +11,7 @@
 //! near a minimizer it has very flat directions (moving a vortex: on the
 //! disk, rotating the four vortices together costs nothing in the continuum).
 //! We use a Levenberg–Marquardt safeguard on the exact Hessian: factor
-//! `H + μ M/ε²` (M the CR mass), starting from the last μ (or 10⁻⁸) and
+//! `H + μ M/ε²` (M the CR mass), starting from the last μ (or 10⁻⁴) and
 //! raising it ×10 until the Cholesky factorization succeeds (the negative curvature of the
 //! penalty is bounded by `M/ε²`, so μ ≈ 1 always succeeds); lower it ×10
 //! after a full step (unless the step's own curvature says the lower μ
@@ -116,8 +116,11 @@ const NESTED_DISSECTION_MIN_DOFS: usize = 200_000;
 const SETTLE_STEPS: usize = 2;
 /// Maximum step halvings.
 const MAX_HALVINGS: usize = 40;
-/// First non-zero Levenberg–Marquardt parameter (units of 1/ε²).
-const MU_FIRST: f64 = 1e-8;
+/// First non-zero Levenberg–Marquardt parameter (units of 1/ε²). 10⁻⁴
+/// rather than 10⁻⁸: a Hessian that fails at μ = 0 needed μ ≈ 10⁻¹ on
+/// sphere_3k, and the raises from 10⁻⁸ cost four more failed factorizations
+/// (factorizations 33 → 29 there, torus_20k 15 → 13, same singularities).
+const MU_FIRST: f64 = 1e-4;
 /// Factor by which μ is raised after a failed factorization, and lowered after a full step.
 const MU_STEP: f64 = 10.0;
 /// Factorization attempts with a raised parameter before the modified Hessian.
@@ -178,6 +181,27 @@ impl<'a> NewtonSolver<'a> {
         }
     }
 
+    /// The symbolic analysis of the Hessian pattern (fill-reducing ordering,
+    /// supernodes), done once; the numeric factorizations reuse it. It only
+    /// needs the pattern, so the multilevel continuation runs it beside the
+    /// coarse levels' solves.
+    ///
+    /// # Errors
+    /// [`CrossfieldError::Linalg`] when the ordering fails.
+    pub fn analyze(&mut self) -> Result<(), CrossfieldError> {
+        if self.chol.is_some() {
+            return Ok(());
+        }
+        let a = self.sys.matrix(vec![0.0; self.sys.n_values()])?;
+        let ordering = if a.nrows() >= NESTED_DISSECTION_MIN_DOFS {
+            FillOrdering::NestedDissection { block: 2 }
+        } else {
+            FillOrdering::Amd
+        };
+        self.chol = Some(SupernodalCholesky::analyze_with(&a, ordering)?);
+        Ok(())
+    }
+
     /// Factor `values + μ·mass` (+ a relative round-off shift), reusing the
     /// symbolic analysis. `mass` holds one entry per real unknown.
     ///
@@ -191,15 +215,8 @@ impl<'a> NewtonSolver<'a> {
     ) -> Result<(), CrossfieldError> {
         self.n_factorizations += 1;
         self.shift_values(&mut values, mass, mu);
+        self.analyze()?;
         let a = self.sys.matrix(values)?;
-        if self.chol.is_none() {
-            let ordering = if a.nrows() >= NESTED_DISSECTION_MIN_DOFS {
-                FillOrdering::NestedDissection { block: 2 }
-            } else {
-                FillOrdering::Amd
-            };
-            self.chol = Some(SupernodalCholesky::analyze_with(&a, ordering)?);
-        }
         if let Some(c) = &mut self.chol {
             c.factor(&a)?;
         }

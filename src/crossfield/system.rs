@@ -256,6 +256,11 @@ impl NewtonSystem {
         self.diag_slot.iter().map(|&s| values[s as usize]).collect()
     }
 
+    /// Entries of the Hessian pattern (lower triangle).
+    pub fn n_values(&self) -> usize {
+        self.symbolic.row_idx().len()
+    }
+
     /// Owned sparse matrix (lower triangle) with the given values.
     ///
     /// # Errors
