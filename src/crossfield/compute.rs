@@ -132,8 +132,17 @@ pub fn epsilon_schedule(eps0: f64, eps: f64, factor: f64) -> Vec<f64> {
 /// `1/continuation_factor`): 4 with the default factor, i.e. 16 times fewer
 /// triangles per level.
 pub const COARSE_EPSILON_RATIO: f64 = 2.5;
-/// A coarse level needs at least this many triangles to resolve its ε.
-const MIN_COARSE_FACES: usize = 2_000;
+/// A coarse level of the input needs at least this many triangles
+/// (disk_3k would get 191 for its first stage alone and stays single-level;
+/// sphere_3k gets 210: 0.20 → 0.12 s, same antiprism).
+const MIN_COARSE_FACES: usize = 200;
+/// A coarse level of a coarse level needs at least this many. A tiny one
+/// starts its continuation above the eigenvalue-based ε₀ and leaves the
+/// vortex arrangement to the finer levels, where Newton steps are dear: on
+/// the 1M-triangle sphere a fourth level of 244 triangles took the input
+/// level from 4 to 8 iterations (42 → 66 s); on a 3k mesh those extra
+/// iterations are cheaper than the stage they replace.
+const MIN_NESTED_COARSE_FACES: usize = 2_000;
 
 /// One mesh of the multilevel continuation and its discretization.
 struct Level<'m> {
@@ -461,7 +470,12 @@ fn solve_levels(
     let target = (level.mesh.n_faces() as f64 * (eps / eps_c).powi(2)) as usize;
     let wants_coarse = opts.multilevel
         && level.mesh.n_faces() >= opts.multilevel_min_faces
-        && target >= MIN_COARSE_FACES
+        && target
+            >= if level.depth == 0 {
+                MIN_COARSE_FACES
+            } else {
+                MIN_NESTED_COARSE_FACES
+            }
         && eps_c < eps0;
     // The coarse levels (coarsening, their continuation, the transfer) run
     // beside this level's symbolic analysis, which only needs the pattern:
