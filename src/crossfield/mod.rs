@@ -97,7 +97,7 @@ pub struct CrossfieldOptions {
     /// triangles. Default true.
     pub multilevel: bool,
     /// Triangles from which a mesh is coarsened for the multilevel
-    /// continuation (the coarse copy also needs at least 200 triangles, or
+    /// continuation (the coarse copy also needs at least 150 triangles, or
     /// 2000 when it is the copy of a copy). Default 2000: sphere_3k (a
     /// 210-triangle level for ε ≥ 0.37) and torus_20k (1294) run about
     /// 25 % faster than on one level (0.15–0.20 → 0.12–0.16 s, 1.2–1.3 →
