@@ -195,31 +195,34 @@ fn unit_sphere_crosses_sit_on_a_square_antiprism() {
     for level in [3, 4] {
         let mesh = fixtures::icosphere(level);
         let field = crossfield(&mesh, &CrossfieldOptions::default());
-        assert_poincare_hopf(&field);
-        assert_eq!(
-            field.singularities.len(),
-            8,
-            "level {level}: {:?}",
-            field.report.singularity_counts
-        );
-        assert!(field.singularities.iter().all(|s| s.index == 0.25));
-        let p: Vec<Vec3> = field
-            .singularities
-            .iter()
-            .map(|s| s.position.normalize())
-            .collect();
-        for d in neighbour_distances(&p) {
-            // Antiprism: 4 nearest at nearly equal distance, then a gap
-            // (a cube has 3 nearest at a, then 3 at a√2) ...
-            assert!(d[3] / d[0] < 1.2, "level {level}: {d:?}");
-            assert!(d[4] / d[3] > 1.2, "level {level}: {d:?}");
-            // ... and the distances of the log-optimal antiprism.
-            for (got, want) in d.iter().zip(&ideal) {
-                assert!(
-                    (got - want).abs() < 0.06,
-                    "level {level}: {d:?} vs {ideal:?}"
-                );
-            }
+        assert_square_antiprism(&field, Some(&ideal), &format!("level {level}"));
+    }
+}
+
+/// Poincaré–Hopf, and the singularities of `field` are 8 crosses (index
+/// 1/4) at the vertices of a square antiprism: each has 4 nearest
+/// neighbours at nearly equal distance, then a gap (a cube has 3 nearest at
+/// a, then 3 at a√2); with `ideal`, also the distances of the log-optimal
+/// antiprism, within 0.06.
+fn assert_square_antiprism(field: &Crossfield, ideal: Option<&[f64]>, what: &str) {
+    assert_poincare_hopf(field);
+    assert_eq!(
+        field.singularities.len(),
+        8,
+        "{what}: {:?}",
+        field.report.singularity_counts
+    );
+    assert!(field.singularities.iter().all(|s| s.index == 0.25));
+    let p: Vec<Vec3> = field
+        .singularities
+        .iter()
+        .map(|s| s.position.normalize())
+        .collect();
+    for d in neighbour_distances(&p) {
+        assert!(d[3] / d[0] < 1.2, "{what}: {d:?}");
+        assert!(d[4] / d[3] > 1.2, "{what}: {d:?}");
+        for (got, want) in d.iter().zip(ideal.unwrap_or(&[])) {
+            assert!((got - want).abs() < 0.06, "{what}: {d:?} vs {ideal:?}");
         }
     }
 }
@@ -442,20 +445,5 @@ fn multilevel_continuation_keeps_the_antiprism_on_the_sphere() {
     let mesh = fixtures::icosphere(6);
     let field = crossfield(&mesh, &multilevel(40_000));
     assert_eq!(field.report.levels.len(), 2, "{:?}", field.report.levels);
-    assert_poincare_hopf(&field);
-    assert_eq!(
-        field.singularities.len(),
-        8,
-        "{:?}",
-        field.report.singularity_counts
-    );
-    assert!(field.singularities.iter().all(|s| s.index == 0.25));
-    let p: Vec<Vec3> = field
-        .singularities
-        .iter()
-        .map(|s| s.position.normalize())
-        .collect();
-    for d in neighbour_distances(&p) {
-        assert!(d[3] / d[0] < 1.2 && d[4] / d[3] > 1.2, "{d:?}");
-    }
+    assert_square_antiprism(&field, None, "icosphere(6), two levels");
 }

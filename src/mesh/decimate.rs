@@ -1049,28 +1049,4 @@ mod tests {
             MeshError::LengthMismatch { expected, found: 3, .. } if expected == topo.n_edges()
         ));
     }
-
-    /// `cargo test --release --lib mesh::decimate -- --ignored --nocapture`
-    #[test]
-    #[ignore = "timing on a million triangles; run in release"]
-    fn timing_million_triangle_disk() {
-        let fine = fixtures::disk(408);
-        let topo = Topology::new(&fine);
-        let none = vec![false; topo.n_edges()];
-        let t0 = std::time::Instant::now();
-        let dec = decimate(&fine, &topo, &none, 62_000, f64::INFINITY).expect("decimate");
-        let dt = t0.elapsed();
-        let ratio = dec.mesh.mean_edge_length() / fine.mean_edge_length();
-        eprintln!(
-            "disk {} → {} faces in {:.3} s; min quality {:.3}, edge length ratio {ratio:.2} (√ {:.2})",
-            fine.n_faces(),
-            dec.mesh.n_faces(),
-            dt.as_secs_f64(),
-            min_quality(&dec.mesh),
-            (fine.n_faces() as f64 / dec.mesh.n_faces() as f64).sqrt()
-        );
-        let ctopo = Topology::new(&dec.mesh);
-        assert_eq!(n_inconsistent_edges(&dec.mesh, &ctopo), 0);
-        assert!(dec.mesh.n_faces() <= 62_000);
-    }
 }
