@@ -484,13 +484,29 @@ fn solve_levels(
     // on 1M triangles the nested-dissection ordering alone takes ~10 s.
     let coarse = if wants_coarse {
         let t_coarse = Instant::now();
+        let marks = (
+            report.history.len(),
+            report.levels.len(),
+            report.epsilon_schedule.len(),
+        );
         let (analysis, coarse) = rayon::join(
             || solver.analyze(),
             || solve_coarse(level, target, eps_c, eps0, opts, progress, report),
         );
         analysis?;
         coarse_seconds = t_coarse.elapsed().as_secs_f64();
-        coarse?
+        match coarse {
+            Ok(c) => c,
+            Err(e @ CrossfieldError::Cancelled(_)) => return Err(e),
+            // A coarse level is an accelerator: if it fails (a factorization
+            // of a poorly shaped copy, say), solve this level on its own.
+            Err(_) => {
+                report.history.truncate(marks.0);
+                report.levels.truncate(marks.1);
+                report.epsilon_schedule.truncate(marks.2);
+                None
+            }
+        }
     } else {
         None
     };
