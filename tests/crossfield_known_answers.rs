@@ -132,6 +132,16 @@ fn unit_disk_has_four_singularities_on_the_optimal_circle() {
     );
 }
 
+/// [`neighbour_distances`] of the singularities projected on the unit sphere.
+fn singularity_distances(field: &Crossfield) -> Vec<Vec<f64>> {
+    let p: Vec<Vec3> = field
+        .singularities
+        .iter()
+        .map(|s| s.position.normalize())
+        .collect();
+    neighbour_distances(&p)
+}
+
 /// Sorted distances from each point to the others.
 fn neighbour_distances(p: &[Vec3]) -> Vec<Vec<f64>> {
     p.iter()
@@ -213,12 +223,7 @@ fn assert_square_antiprism(field: &Crossfield, ideal: Option<&[f64]>, what: &str
         field.report.singularity_counts
     );
     assert!(field.singularities.iter().all(|s| s.index == 0.25));
-    let p: Vec<Vec3> = field
-        .singularities
-        .iter()
-        .map(|s| s.position.normalize())
-        .collect();
-    for d in neighbour_distances(&p) {
+    for d in singularity_distances(field) {
         assert!(d[3] / d[0] < 1.2, "{what}: {d:?}");
         assert!(d[4] / d[3] > 1.2, "{what}: {d:?}");
         for (got, want) in d.iter().zip(ideal.unwrap_or(&[])) {
@@ -249,12 +254,7 @@ fn unit_sphere_asterisks_sit_on_an_icosahedron() {
                 .iter()
                 .all(|s| (s.index - 1.0 / 6.0).abs() < 1e-12)
         );
-        let p: Vec<Vec3> = field
-            .singularities
-            .iter()
-            .map(|s| s.position.normalize())
-            .collect();
-        for d in neighbour_distances(&p) {
+        for d in singularity_distances(&field) {
             // Icosahedron: 5 neighbours at the edge length 1.0515, the next at 1.7013.
             assert!(d[4] / d[0] < 1.1, "{d:?}");
             assert!(d[5] / d[4] > 1.4, "{d:?}");

@@ -412,12 +412,7 @@ pub fn compute_crossfield(
         report.energy =
             super::energy::total_energy(&level.disc, topo, &f, &level.params(eps, opts));
     }
-    report.n_modified_steps += solver.n_modified_steps;
-    report.n_factorizations += solver.n_factorizations;
-    report.n_krylov_iterations += solver.n_krylov_iterations;
-    if let Some(l) = report.levels.last_mut() {
-        l.n_factorizations = solver.n_factorizations;
-    }
+    add_solver_counts(&mut report, &solver);
 
     let idx = vertex_indices(mesh, topo, &level.disc, &f);
     let chi = topology_summary(mesh, topo).euler_characteristic;
@@ -587,15 +582,21 @@ fn solve_coarse(
         &progress.sub(0.0, 0.3),
         report,
     )?;
-    report.n_modified_steps += cs.n_modified_steps;
-    report.n_factorizations += cs.n_factorizations;
-    report.n_krylov_iterations += cs.n_krylov_iterations;
-    if let Some(l) = report.levels.last_mut() {
-        l.n_factorizations = cs.n_factorizations;
-    }
+    add_solver_counts(report, &cs);
     let mut g = transfer_to_fine(&c.mesh, &c.topo, &cl.disc, &fc, level.mesh, level.topo);
     level.reset_fixed(&mut g);
     Ok(Some((kind, g)))
+}
+
+/// Add a level's solver counters to `report`, and its factorizations to the
+/// level last reported (the one that solver worked on).
+fn add_solver_counts(report: &mut CrossfieldReport, solver: &NewtonSolver) {
+    report.n_modified_steps += solver.n_modified_steps;
+    report.n_factorizations += solver.n_factorizations;
+    report.n_krylov_iterations += solver.n_krylov_iterations;
+    if let Some(l) = report.levels.last_mut() {
+        l.n_factorizations = solver.n_factorizations;
+    }
 }
 
 /// Newton minimizations along the ε `schedule` on `level`, accumulating into
