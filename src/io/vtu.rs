@@ -18,8 +18,11 @@
 //! - `Raw` (default): `format="appended"` with `<AppendedData
 //!   encoding="raw">_` followed by `header + bytes` per array, then a line
 //!   break before `</AppendedData>` (meshio cuts the data at the last line
-//!   break). Smallest and fastest; what ParaView's own writer produces by
-//!   default; not well-formed XML, so generic XML parsers cannot open it.
+//!   break). The block holds the arrays in reverse document order, so that
+//!   meshio's offset rewriting cannot match the wrong array (see
+//!   `appended_bytes`). Smallest and fastest; what ParaView's own writer
+//!   produces by default; not well-formed XML, so generic XML parsers cannot
+//!   open it.
 //!
 //! No compression. Output is buffered internally in 64 KiB chunks (no
 //! `BufWriter` needed). Input is validated in full before the first byte.
@@ -299,6 +302,7 @@ pub fn write_vtu(w: impl Write, mesh: &VtuMesh<'_>, opts: &VtuOptions) -> Result
     }
     let mut arrays: Vec<(Source<'_>, String)> = Vec::new();
     let mut xml = XmlOut::new(w, opts);
+    xml.offset = appended_bytes(mesh, wide, opts.header_type);
     xml.text("<?xml version=\"1.0\"?>\n<VTKFile type=\"UnstructuredGrid\" version=\"1.0\" byte_order=\"LittleEndian\" header_type=\"");
     xml.text(match opts.header_type {
         VtuHeaderType::UInt32 => "UInt32",
@@ -330,6 +334,28 @@ pub fn write_vtu(w: impl Write, mesh: &VtuMesh<'_>, opts: &VtuOptions) -> Result
     xml.appended()?;
     xml.text("</VTKFile>\n");
     xml.finish()
+}
+
+/// Total bytes of the raw appended block (every array with its header).
+///
+/// The block holds the arrays in *reverse* document order: the first
+/// `DataArray` of the XML is the last in the block. VTK reads each array at
+/// its offset, whatever the order. meshio converts the block to base64 in
+/// block order, rewriting each array's `offset` as it goes and looking the
+/// next one up by its raw offset with the first match in document order; in
+/// reverse order every array still to be found comes before every rewritten
+/// one, so a rewritten offset that equals a pending raw offset can no longer
+/// be matched in its place.
+fn appended_bytes(mesh: &VtuMesh<'_>, wide: bool, header_type: VtuHeaderType) -> usize {
+    let header = if header_type == VtuHeaderType::UInt64 { 8 } else { 4 };
+    let fixed = [
+        Source::Points(mesh.points),
+        Source::Connectivity(&mesh.cells, wide),
+        Source::Offsets(&mesh.cells, wide),
+        Source::Types(&mesh.cells),
+    ];
+    let data = mesh.point_data.iter().chain(&mesh.cell_data).map(|a| Source::Values(&a.values));
+    fixed.into_iter().chain(data).map(|s| s.n_bytes() + header).sum()
 }
 
 /// `type="…" Name="…" NumberOfComponents="…"` with the name XML-escaped.
@@ -453,7 +479,8 @@ struct XmlOut<'s, W: Write> {
     header64: bool,
     /// Raw encoding: arrays waiting for the appended block.
     pending: Vec<Source<'s>>,
-    /// Raw encoding: offset of the next appended array.
+    /// Raw encoding: offset of the array written last (the appended block
+    /// holds the arrays in reverse document order, see [`appended_bytes`]).
     offset: usize,
 }
 
@@ -496,8 +523,8 @@ impl<'s, W: Write> XmlOut<'s, W> {
                     self.text("\n</DataArray>\n");
                 }
                 VtuEncoding::Raw => {
+                    self.offset -= n + if self.header64 { 8 } else { 4 };
                     self.text(&format!("<DataArray {attrs} format=\"appended\" offset=\"{}\"/>\n", self.offset));
-                    self.offset += n + if self.header64 { 8 } else { 4 };
                     self.pending.push(src);
                 }
             }
@@ -554,7 +581,8 @@ impl<'s, W: Write> XmlOut<'s, W> {
             return Ok(());
         }
         self.text("<AppendedData encoding=\"raw\">\n_");
-        for src in std::mem::take(&mut self.pending) {
+        debug_assert_eq!(self.offset, 0, "every appended array was given its offset");
+        for src in std::mem::take(&mut self.pending).into_iter().rev() {
             let header = self.header_bytes(src.n_bytes());
             self.buf.extend_from_slice(&header);
             let (w, buf) = (&mut self.w, &mut self.buf);
