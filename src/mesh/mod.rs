@@ -15,6 +15,7 @@
 pub mod boundary;
 pub mod components;
 pub mod decimate;
+pub mod degenerate;
 pub mod error;
 pub mod fixtures;
 pub mod ids;

@@ -6,7 +6,10 @@
 //! 2. weld exactly, then by tolerance ([`super::weld`]);
 //! 3. remove **degenerate** triangles: a repeated vertex index (often
 //!    created by the weld);
-//! 4. remove **zero-area** triangles (definition below);
+//! 4. resolve **zero-area** triangles (definition below) without opening
+//!    the surface ([`super::degenerate`]): a needle's vanishing edge is
+//!    collapsed, a cap's long edge flipped; only a triangle neither applies
+//!    to (long edge on the boundary or non-manifold) is removed;
 //! 5. remove **duplicate** triangles: same three vertices as an earlier
 //!    triangle in any order or orientation (the first is kept);
 //! 6. drop vertices left unreferenced by 3–5 (same counter as step 1);
@@ -30,6 +33,7 @@
 //!
 //! Nothing is removed silently: every removal is a count in [`RepairReport`].
 
+use super::degenerate::resolve_zero_area_triangles;
 use super::orientation::orient_consistently;
 use super::summary::{TopologySummary, topology_summary};
 use super::weld::weld_vertices;
@@ -61,7 +65,16 @@ pub struct RepairReport {
     /// True when the tolerance weld exceeded its work bound (vertices packed
     /// far denser than the tolerance) and only the exact weld was applied.
     pub tolerance_weld_abandoned: bool,
-    /// Triangles removed because their area is zero up to round-off.
+    /// Vanishing edges of zero-area "needle" triangles collapsed (step 4).
+    pub n_zero_area_edges_collapsed: usize,
+    /// Triangles dropped by those collapses: each needle and its neighbour
+    /// across the vanishing edge (the surface stays closed).
+    pub n_triangles_removed_by_collapse: usize,
+    /// Long edges of zero-area "cap" triangles flipped (the cap and its
+    /// neighbour replaced by two valid triangles).
+    pub n_zero_area_edges_flipped: usize,
+    /// Zero-area triangles that could be neither collapsed nor flipped (long
+    /// edge on the boundary or non-manifold) and were removed.
     pub n_zero_area_triangles_removed: usize,
     /// Triangles removed because they use a vertex twice (after welding).
     pub n_degenerate_triangles_removed: usize,
@@ -149,9 +162,11 @@ pub fn repair_triangle_soup(
     report.n_degenerate_triangles_removed = before - triangles.len();
 
     let diagonal = BoundingBox::of_points(&positions).map_or(0.0, |b| b.diagonal());
-    let before = triangles.len();
-    triangles.retain(|t| !is_zero_area(&positions, t, diagonal));
-    report.n_zero_area_triangles_removed = before - triangles.len();
+    let zero_area = resolve_zero_area_triangles(&positions, &mut triangles, diagonal);
+    report.n_zero_area_edges_collapsed = zero_area.n_needle_edges_collapsed;
+    report.n_triangles_removed_by_collapse = zero_area.n_triangles_removed_by_collapse;
+    report.n_zero_area_edges_flipped = zero_area.n_cap_edges_flipped;
+    report.n_zero_area_triangles_removed = zero_area.n_removed;
 
     report.n_duplicate_triangles_removed = remove_duplicates(&mut triangles);
 
@@ -181,15 +196,6 @@ pub fn repair_triangle_soup(
     report.closed = summary.is_closed();
     report.topology = Some(summary);
     Ok((mesh, report))
-}
-
-/// True when triangle `t` has zero area up to round-off (module doc).
-#[inline]
-fn is_zero_area(positions: &[Vec3], t: &[u32; 3], diagonal: f64) -> bool {
-    let [a, b, c] = t.map(|v| positions[v as usize]);
-    let twice_area = (b - a).cross(&(c - a)).norm();
-    let longest = (b - a).norm().max((c - b).norm()).max((a - c).norm());
-    twice_area <= ZERO_AREA_RELATIVE_HEIGHT * diagonal * longest
 }
 
 /// Remove triangles whose vertex set repeats an earlier one; returns how many.
@@ -301,6 +307,48 @@ mod tests {
         assert_eq!((rep.n_boundary_loops, rep.euler_characteristic, rep.genus), (1, 1, Some(0)));
         assert_eq!(rep.n_input_triangles, 13);
         assert_eq!(rep.n_input_vertices, 12);
+    }
+
+    /// A closed icosphere with a cap (a T-junction closed by a collinear
+    /// triangle) and two needles (a vertex doubled 1e-14 away, the seams of
+    /// its split fan filled by slivers with a vanishing edge).
+    fn sphere_with_cap_and_needles() -> (TriMesh, Vec<Vec3>, Vec<[u32; 3]>) {
+        let m = fixtures::icosphere(2);
+        let mut p = m.positions.clone();
+        let mut t: Vec<[u32; 3]> = m.triangles.iter().map(|t| t.map(|v| v.0)).collect();
+        let [a, b, c] = t[0];
+        let mid = p.len() as u32;
+        p.push((p[a as usize] + p[b as usize]) / 2.0);
+        t[0] = [a, mid, c];
+        t.push([mid, b, c]);
+        t.push([a, b, mid]); // the cap: pairs b→a of the neighbour, m→b and a→m
+        let f = t.iter().position(|tri| !tri.iter().any(|v| [a, b, c].contains(v))).unwrap();
+        let [v, x, y] = t[f];
+        let v2 = p.len() as u32;
+        p.push(p[v as usize] + Vec3::new(1e-14, 0.0, 0.0));
+        t[f] = [v2, x, y];
+        t.push([v, x, v2]);
+        t.push([v, v2, y]);
+        (m, p, t)
+    }
+
+    #[test]
+    fn zero_area_triangles_are_resolved_without_opening_a_closed_surface() {
+        let (m, p, t) = sphere_with_cap_and_needles();
+        let n_in = t.len();
+        let (r, rep) = repair_triangle_soup(p, t, 0.0).unwrap();
+        assert_eq!((rep.closed, rep.n_boundary_loops, rep.euler_characteristic), (true, 0, 2), "{rep:?}");
+        assert_eq!(rep.n_zero_area_edges_flipped, 1);
+        assert_eq!((rep.n_zero_area_edges_collapsed, rep.n_triangles_removed_by_collapse), (1, 2));
+        assert_eq!(rep.n_zero_area_triangles_removed, 0);
+        // Only the two needles went (collapsed away); the cap was replaced.
+        assert_eq!(r.n_faces(), n_in - 2);
+        assert_eq!(r.n_faces(), m.n_faces() + 2);
+        assert_eq!(r.n_vertices(), m.n_vertices() + 1);
+        let diagonal = BoundingBox::of_points(&r.positions).unwrap().diagonal();
+        let tris: Vec<[u32; 3]> = r.triangles.iter().map(|t| t.map(|v| v.0)).collect();
+        assert!(tris.iter().all(|t| !super::super::degenerate::is_zero_area(&r.positions, t, diagonal)));
+        assert!(r.signed_volume() > 0.0);
     }
 
     #[test]
