@@ -13,7 +13,7 @@ use meshatlas::io::msh41::model::{DataView, MshModel, PhysicalName};
 use meshatlas::io::msh41::write::{Msh41Options, write_msh41};
 use meshatlas::io::stl_write::write_stl_binary;
 use meshatlas::io::vtu::{
-    CellBlock, DataArray, DataValues, VtuEncoding, VtuHeaderType, VtuMesh, VtuOptions, write_vtu,
+    CellBlock, DataArray, DataValues, VtuCompression, VtuEncoding, VtuHeaderType, VtuMesh, VtuOptions, write_vtu,
 };
 use meshatlas::mesh::{FaceId, TetMesh, TriMesh, VertexId, fixtures};
 mod common;
@@ -373,28 +373,26 @@ fn ids(cells: &[VertexId]) -> Vec<u64> {
     cells.iter().map(|v| u64::from(v.0)).collect()
 }
 
-const ENCODINGS: [(VtuEncoding, VtuHeaderType, &str); 4] = [
-    (VtuEncoding::Ascii, VtuHeaderType::UInt64, "ascii"),
-    (VtuEncoding::Base64, VtuHeaderType::UInt64, "base64_64"),
-    (VtuEncoding::Base64, VtuHeaderType::UInt32, "base64_32"),
-    (VtuEncoding::Raw, VtuHeaderType::UInt64, "raw"),
+const ENCODINGS: [(VtuEncoding, VtuHeaderType, VtuCompression, &str); 8] = [
+    (VtuEncoding::Ascii, VtuHeaderType::UInt64, VtuCompression::None, "ascii"),
+    (VtuEncoding::Base64, VtuHeaderType::UInt64, VtuCompression::None, "base64_64"),
+    (VtuEncoding::Base64, VtuHeaderType::UInt32, VtuCompression::None, "base64_32"),
+    (VtuEncoding::Raw, VtuHeaderType::UInt64, VtuCompression::None, "raw"),
+    (VtuEncoding::Raw, VtuHeaderType::UInt32, VtuCompression::None, "raw_32"),
+    (VtuEncoding::Raw, VtuHeaderType::UInt64, VtuCompression::Zlib, "raw_zlib"),
+    (VtuEncoding::Raw, VtuHeaderType::UInt32, VtuCompression::Zlib, "raw_zlib_32"),
+    (VtuEncoding::Base64, VtuHeaderType::UInt64, VtuCompression::Zlib, "base64_zlib"),
 ];
 
 fn write_mixed(dir: &Path, fixture: &MixedVtu) -> Vec<PathBuf> {
     ENCODINGS
         .iter()
-        .map(|&(encoding, header_type, name)| {
+        .map(|&(encoding, header_type, compression, name)| {
             let file = dir.join(format!("mixed_{name}.vtu"));
-            write_vtu(std::fs::File::create(&file).unwrap(), &fixture.mesh(), &VtuOptions { encoding, header_type })
-                .unwrap();
-            file
-        })
-        .chain(std::iter::once({
-            let file = dir.join("mixed_raw_32.vtu");
-            let opts = VtuOptions { encoding: VtuEncoding::Raw, header_type: VtuHeaderType::UInt32 };
+            let opts = VtuOptions { encoding, header_type, compression };
             write_vtu(std::fs::File::create(&file).unwrap(), &fixture.mesh(), &opts).unwrap();
             file
-        }))
+        })
         .collect()
 }
 

@@ -1,7 +1,7 @@
 //! Property test of the VTU writer against two independent readers: many
 //! files with random point and cell counts, random array sets, both header
 //! types and every encoding, each read back by meshio and by VTK's XML
-//! reader (what ParaView uses).
+//! reader (what ParaView uses), plain and zlib-compressed.
 //!
 //! meshio reads a raw appended block by converting it to base64 array by
 //! array, rewriting each `offset` attribute as it goes and looking the next
@@ -16,7 +16,7 @@ use std::path::Path;
 
 use meshatlas::geom::Vec3;
 use meshatlas::io::vtu::{
-    CellBlock, DataArray, DataValues, VtuEncoding, VtuHeaderType, VtuMesh, VtuOptions, write_vtu,
+    CellBlock, DataArray, DataValues, VtuCompression, VtuEncoding, VtuHeaderType, VtuMesh, VtuOptions, write_vtu,
 };
 use meshatlas::mesh::VertexId;
 use rand::rngs::StdRng;
@@ -257,12 +257,18 @@ fn random_vtus_are_read_by_meshio_and_vtk() {
         };
         // Raw (the default and the case meshio mishandled) for every file,
         // base64 and ASCII for a few.
-        let encodings: &[VtuEncoding] =
-            if i % 6 == 0 { &[VtuEncoding::Raw, VtuEncoding::Base64, VtuEncoding::Ascii] } else { &[VtuEncoding::Raw] };
-        for &encoding in encodings {
+        let (raw, zlib) = (VtuEncoding::Raw, VtuCompression::Zlib);
+        let none = VtuCompression::None;
+        let variants: &[(VtuEncoding, VtuCompression)] = if i % 6 == 0 {
+            &[(raw, none), (raw, zlib), (VtuEncoding::Base64, none), (VtuEncoding::Base64, zlib), (VtuEncoding::Ascii, none)]
+        } else {
+            &[(raw, none), (raw, zlib)]
+        };
+        for &(encoding, compression) in variants {
             let header_type = if c.header64 { VtuHeaderType::UInt64 } else { VtuHeaderType::UInt32 };
-            let file = dir.join(format!("f{i:02}_{encoding:?}.vtu"));
-            write_vtu(std::fs::File::create(&file).unwrap(), &mesh, &VtuOptions { encoding, header_type }).unwrap();
+            let file = dir.join(format!("f{i:02}_{encoding:?}_{compression:?}.vtu"));
+            let opts = VtuOptions { encoding, header_type, compression };
+            write_vtu(std::fs::File::create(&file).unwrap(), &mesh, &opts).unwrap();
             want.insert(path_str(&file).to_string(), expected(&d));
             files.push(path_str(&file).to_string());
         }
