@@ -413,12 +413,10 @@ pub fn compute_frame_field(surface: &TriMesh, volume: Option<&TetMesh>, opts: &F
 
     // 5. Singular edges.
     let t = Instant::now();
-    let frames_t = tet_frames(&mesh, &field.sh9_per_vertex, &field.rotation_per_vertex);
-    progress.check()?;
+    let frames_t = tet_frames(&mesh, &field.sh9_per_vertex, &field.rotation_per_vertex, progress)?;
     seconds.tet_frames = t.elapsed().as_secs_f64();
     let t = Instant::now();
-    let (singular, singular_report) = singular_edges(&mesh, &frames_t, &boundary, opts.singular_axis_tolerance_deg);
-    progress.check()?;
+    let (singular, singular_report) = singular_edges(&mesh, &frames_t, &boundary, opts.singular_axis_tolerance_deg, progress)?;
     let quaternion_per_tet = frames_t.par_iter().map(|r| Quat::from_matrix(r).0).collect();
     seconds.singular = t.elapsed().as_secs_f64();
     progress.set(1.0);

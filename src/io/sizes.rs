@@ -263,7 +263,8 @@ mod tests {
 
     #[test]
     fn ascii_stl_obj_ply_and_msh_are_counted() {
-        let facet = "facet normal 0 0 1\n outer loop\n  vertex 0 0 0\n  vertex 1 0 0\n  vertex 0 1 0\n endloop\nendfacet\n";
+        let facet =
+            "facet normal 0 0 1\n outer loop\n  vertex 0 0 0\n  vertex 1 0 0\n  vertex 0 1 0\n endloop\nendfacet\n";
         let stl = format!("solid x\n{}endsolid x\n", facet.repeat(2000));
         assert_eq!(scan(stl.as_bytes(), Format::Stl).n_triangles, 2000);
         let obj = "v 0 0 0\nv 1 0 0\nv 0 1 0\nv 1 1 0\nf 1 2 3\nf 1/1 2/2 4/4 3/3\n# f 1 2 3\n  f 1 2 3";

@@ -79,9 +79,7 @@ pub fn peak_memory_estimate(sizes: &InputSizes, params: &PipelineParams) -> Memo
             Some(LinearSolverKind::Pcg) => 0,
             None => tets.min((params.frames.direct_solver_max_vertices as u64).saturating_mul(TETS_PER_VERTEX)),
         };
-        per(tets, FRAMES_BYTES_PER_TET)
-            .max(per(direct_tets, FRAMES_CHOLESKY_BYTES_PER_TET))
-            .saturating_add(load)
+        per(tets, FRAMES_BYTES_PER_TET).max(per(direct_tets, FRAMES_CHOLESKY_BYTES_PER_TET)).saturating_add(load)
     } else {
         0
     };
