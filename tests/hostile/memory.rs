@@ -249,3 +249,31 @@ async fn cancel_and_delete_answer_202_while_the_stop_is_pending() {
     let r = s.client.delete(s.url(&format!("/v1/jobs/{b}"))).send().await.unwrap();
     assert_eq!(r.status().as_u16(), 204);
 }
+
+/// Cancel of a crossfield job (torus, 20k triangles) stops it within a
+/// second at any point of the multilevel Newton solve. A guard for the
+/// bound: unlike the frames test it also passed before the frames loops
+/// were made cancellable (the crossfield checks every Newton iteration).
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn cancel_stops_a_crossfield_job_within_a_second() {
+    let s = Server::start(&[]);
+    let params = r#"{"stages":["crossfield"]}"#;
+    for after in [Duration::from_millis(200), Duration::from_millis(700), Duration::from_millis(1500)] {
+        let id = submit_ok(&s, "gmsh/torus_20k.stl", params).await;
+        s.wait_for(&id, Duration::from_secs(60), |j| j["stage"] == "crossfield").await;
+        tokio::time::sleep(after).await;
+        let t = Instant::now();
+        let r = s.client.post(s.url(&format!("/v1/jobs/{id}/cancel"))).send().await.unwrap();
+        let status = r.status().as_u16();
+        let j: Value = r.json().await.unwrap();
+        if j["state"] == "succeeded" {
+            eprintln!("crossfield job ended before the cancel {after:?} into the stage");
+            continue;
+        }
+        let j = if j["state"] == "cancelled" { j } else { s.wait_final(&id, Duration::from_secs(30)).await };
+        let stop_ms = t.elapsed().as_millis();
+        eprintln!("cancel {after:?} into crossfield: answer {status}, stopped after {stop_ms} ms");
+        assert_eq!(j["state"], "cancelled", "{j:#}");
+        assert!(stop_ms < 1000, "cancel {after:?} into crossfield took {stop_ms} ms");
+    }
+}
