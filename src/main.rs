@@ -11,7 +11,7 @@ use std::time::Duration;
 use clap::{Args, Parser, Subcommand};
 
 use meshatlas::http::{AppState, HttpLimits};
-use meshatlas::jobs::{Delayed, Executor, JobService, JobsConfig, pipeline_executor::PipelineExecutor};
+use meshatlas::jobs::{Delayed, Executor, JobService, JobsConfig, Stalled, pipeline_executor::PipelineExecutor};
 use meshatlas::pipeline::{PipelineParams, StageName, parse_params, run_pipeline};
 use meshatlas::progress::{Progress, ProgressSink};
 
@@ -51,6 +51,15 @@ struct ServeArgs {
     /// Server-wide triangle cap (jobs above fail with too-many-triangles).
     #[arg(long, env = "MESHATLAS_MAX_TRIANGLES", default_value_t = 5_000_000)]
     max_triangles: usize,
+    /// Server-wide cap on the frames stage's tetrahedra (a job's own
+    /// `frames.max_tets` is clamped to it).
+    #[arg(long, env = "MESHATLAS_MAX_TETS", default_value_t = 2_000_000, value_parser = clap::value_parser!(u64).range(1..))]
+    max_tets: u64,
+    /// Memory the running jobs' estimated peaks may add up to (e.g. 16GiB,
+    /// 512MiB, bytes); a job estimated above it is refused with 422.
+    /// Default: 75 % of physical memory (or of the cgroup limit if smaller).
+    #[arg(long, env = "MESHATLAS_MEMORY_BUDGET", value_parser = meshatlas::jobs::memory::parse_byte_size)]
+    memory_budget: Option<u64>,
     /// Wall-time limit of one job, in seconds.
     #[arg(long, env = "MESHATLAS_JOB_TIMEOUT_SECS", default_value_t = 3600.0)]
     job_timeout_secs: f64,
@@ -64,6 +73,10 @@ struct ServeArgs {
     /// can kill the server mid-job.
     #[arg(long, env = "MESHATLAS_TEST_JOB_DELAY_MS", hide = true)]
     test_job_delay_ms: Option<u64>,
+    /// Testing only: ignore cancellation this long at the start of each job,
+    /// so tests see a stop that is pending.
+    #[arg(long, env = "MESHATLAS_TEST_STALL_MS", hide = true)]
+    test_stall_ms: Option<u64>,
 }
 
 #[derive(Args)]
@@ -133,11 +146,21 @@ fn serve(args: ServeArgs) -> Result<(), String> {
         job_timeout: Duration::from_secs_f64(args.job_timeout_secs),
         max_attempts: args.max_attempts.max(1),
         max_triangles: args.max_triangles,
+        max_tets: usize::try_from(args.max_tets).unwrap_or(usize::MAX),
+        memory_budget: args.memory_budget.unwrap_or_else(meshatlas::jobs::memory::default_memory_budget),
         ..JobsConfig::new(&args.data_dir)
     };
+    tracing::info!(memory_budget = config.memory_budget, max_tets = config.max_tets, "memory admission");
     let executor: Arc<dyn Executor> = match args.test_job_delay_ms {
         Some(ms) => Arc::new(Delayed { inner: PipelineExecutor, delay: Duration::from_millis(ms) }),
         None => Arc::new(PipelineExecutor),
+    };
+    let executor: Arc<dyn Executor> = match args.test_stall_ms {
+        Some(ms) => {
+            let inner = move |job: &meshatlas::jobs::JobInput, p: &Progress| executor.execute(job, p);
+            Arc::new(Stalled { inner, stall: Duration::from_millis(ms) })
+        }
+        None => executor,
     };
     let limits = HttpLimits { max_upload_bytes: args.max_upload_bytes, retry_after_secs: args.retry_after_secs };
     let rt = tokio::runtime::Builder::new_multi_thread()

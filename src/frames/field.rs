@@ -39,7 +39,7 @@ use super::su2::C64;
 use super::volume::{
     VolumeReport, boundary_vertex_normals, boundary_vertices_of_faces, check_closed, dihedral_angle_range, lattice_spacing,
     tet_boundary_faces,
-    tetrahedralize_enclosed_volume,
+    tetrahedralize_enclosed_volume_cancellable,
 };
 use crate::fem::tet_p1::tet_p1_operators;
 use crate::geom::Vec3;
@@ -340,7 +340,8 @@ pub fn compute_frame_field(surface: &TriMesh, volume: Option<&TetMesh>, opts: &F
             surface.validate().map_err(FramesError::InvalidSurface)?;
             check_closed(surface)?;
             let (h, capped) = lattice_spacing(surface, opts.target_size, opts.max_tets)?;
-            let (stuffed, mut rep) = tetrahedralize_enclosed_volume(surface, h, opts.alpha_long, opts.alpha_short)?;
+            let (stuffed, mut rep) =
+                tetrahedralize_enclosed_volume_cancellable(surface, h, opts.alpha_long, opts.alpha_short, &vol_progress)?;
             rep.spacing_capped = capped;
             (stuffed.mesh, rep, Some(stuffed.surface_triangle_per_vertex))
         }
@@ -352,14 +353,17 @@ pub fn compute_frame_field(surface: &TriMesh, volume: Option<&TetMesh>, opts: &F
     // 2. Constraints and initial frame.
     let t = Instant::now();
     let faces = tet_boundary_faces(&mesh);
+    progress.check()?;
     let boundary = boundary_vertices_of_faces(mesh.n_vertices(), &faces);
     let constraints = boundary_constraints(&mesh, &faces, &boundary, surface, surface_triangle.as_deref(), opts.feature_angle_deg);
+    progress.check()?;
     let initial = best_fit_frame(&constraints);
     seconds.constraints = t.elapsed().as_secs_f64();
 
     // 3. Operators and field.
     let t = Instant::now();
     let ops = tet_p1_operators(&mesh);
+    progress.check()?;
     seconds.operators = t.elapsed().as_secs_f64();
     progress.sub(0.2, 0.25).set(1.0);
     let diag = mesh_diagonal(&mesh);
@@ -409,10 +413,10 @@ pub fn compute_frame_field(surface: &TriMesh, volume: Option<&TetMesh>, opts: &F
 
     // 5. Singular edges.
     let t = Instant::now();
-    let frames_t = tet_frames(&mesh, &field.sh9_per_vertex, &field.rotation_per_vertex);
+    let frames_t = tet_frames(&mesh, &field.sh9_per_vertex, &field.rotation_per_vertex, progress)?;
     seconds.tet_frames = t.elapsed().as_secs_f64();
     let t = Instant::now();
-    let (singular, singular_report) = singular_edges(&mesh, &frames_t, &boundary, opts.singular_axis_tolerance_deg);
+    let (singular, singular_report) = singular_edges(&mesh, &frames_t, &boundary, opts.singular_axis_tolerance_deg, progress)?;
     let quaternion_per_tet = frames_t.par_iter().map(|r| Quat::from_matrix(r).0).collect();
     seconds.singular = t.elapsed().as_secs_f64();
     progress.set(1.0);

@@ -196,7 +196,7 @@ pub fn smooth_octahedral_field(
         let a = ops.combination(0.0, 1.0, Some(&penalty_or_isolated));
         diffuser.set_matrix(ops, &a, &mut timer)?;
         n_factorizations += 1;
-        let x = diffuser.diffuse(ops, &state.columns, 1.0, &mut timer)?;
+        let x = diffuser.diffuse(ops, &state.columns, 1.0, &mut timer, progress)?;
         let old = state.columns.clone();
         state.project_free(&x, constraints, params.projection_accept, &mut timer);
         let max_change = max_vertex_change(&old, &state.columns);
@@ -225,7 +225,7 @@ pub fn smooth_octahedral_field(
         n_factorizations += 1;
         for step in 0..params.max_steps_per_level {
             progress.check()?;
-            let x = diffuser.diffuse(ops, &state.columns, tau, &mut timer)?;
+            let x = diffuser.diffuse(ops, &state.columns, tau, &mut timer, progress)?;
             let old = state.columns.clone();
             if dirichlet {
                 // Interior: project the diffused values; boundary: the best
@@ -329,7 +329,14 @@ impl Diffuser {
     /// `τ = 1`), but the right-hand side vanishes for a smooth field, so the
     /// penalty's conditioning does not pollute an already harmonic (e.g.
     /// constant) field, and an iterative solve starts from the right scale.
-    fn diffuse(&mut self, ops: &TetP1Operators, columns: &[Vec<f64>], tau: f64, timer: &mut Timers) -> Result<Vec<Vec<f64>>, FramesError> {
+    fn diffuse(
+        &mut self,
+        ops: &TetP1Operators,
+        columns: &[Vec<f64>],
+        tau: f64,
+        timer: &mut Timers,
+        progress: &Progress,
+    ) -> Result<Vec<Vec<f64>>, FramesError> {
         let t = Instant::now();
         let n = ops.n_vertices;
         let mut rhs: Vec<Vec<f64>> = columns
@@ -346,7 +353,7 @@ impl Diffuser {
             Diffuser::Iterative { csr: Some(m), tolerance, iterations } => {
                 let b: Vec<[f64; 9]> = (0..n).into_par_iter().map(|v| std::array::from_fn(|c| rhs[c][v])).collect();
                 let mut d = vec![[0.0; 9]; n];
-                let out = pcg9(m, &b, &mut d, *tolerance, 20 * n.max(100));
+                let out = pcg9(m, &b, &mut d, *tolerance, 20 * n.max(100), progress)?;
                 *iterations += out.iterations;
                 rhs.par_iter_mut().enumerate().for_each(|(c, col)| {
                     for (v, x) in col.iter_mut().enumerate() {

@@ -21,6 +21,7 @@
 //! number of threads.
 
 use rayon::prelude::*;
+use crate::progress::{Cancelled, Progress};
 
 /// Rows per parallel chunk (fixed, for deterministic reductions).
 const CHUNK: usize = 4096;
@@ -153,8 +154,19 @@ pub struct PcgOutcome {
 
 /// Solve `A x_c = b_c` for the 9 interleaved columns by Jacobi-preconditioned
 /// CG from the initial `x`, until `|r_c| ≤ tol |b_c|` for every column or
-/// `max_iter` iterations.
-pub fn pcg9(a: &SymmetricCsr, b: &[[f64; 9]], x: &mut [[f64; 9]], tol: f64, max_iter: usize) -> PcgOutcome {
+/// `max_iter` iterations. `progress` is checked every iteration (one atomic
+/// load beside a sparse product), so a cancel stops the solve at once.
+///
+/// # Errors
+/// [`Cancelled`] when `progress` is cancelled.
+pub fn pcg9(
+    a: &SymmetricCsr,
+    b: &[[f64; 9]],
+    x: &mut [[f64; 9]],
+    tol: f64,
+    max_iter: usize,
+    progress: &Progress,
+) -> Result<PcgOutcome, Cancelled> {
     let n = a.n;
     let mut r = vec![[0.0; 9]; n];
     a.apply9(x, &mut r);
@@ -186,6 +198,7 @@ pub fn pcg9(a: &SymmetricCsr, b: &[[f64; 9]], x: &mut [[f64; 9]], tol: f64, max_
     let mut it = 0;
     while it < max_iter && active.iter().any(|a| *a) {
         it += 1;
+        progress.check()?;
         a.apply9(&p, &mut ap);
         let pap = dot9(&p, &ap);
         let alpha: [f64; 9] = std::array::from_fn(|c| if active[c] && pap[c] > 0.0 { rz[c] / pap[c] } else { 0.0 });
@@ -212,7 +225,7 @@ pub fn pcg9(a: &SymmetricCsr, b: &[[f64; 9]], x: &mut [[f64; 9]], tol: f64, max_
         });
     }
     let rel = (0..9).map(|c| if bnorm[c] > 0.0 { rnorm[c] / bnorm[c] } else { 0.0 }).fold(0.0, f64::max);
-    PcgOutcome { iterations: it, relative_residual: rel }
+    Ok(PcgOutcome { iterations: it, relative_residual: rel })
 }
 
 #[cfg(test)]
@@ -233,7 +246,7 @@ mod tests {
         csr.set_values(lower);
         let b: Vec<[f64; 9]> = (0..n).map(|i| std::array::from_fn(|c| ((i * 7 + c * 3) % 11) as f64 - 5.0)).collect();
         let mut x = vec![[0.0; 9]; n];
-        let out = pcg9(&csr, &b, &mut x, 1e-12, 500);
+        let out = pcg9(&csr, &b, &mut x, 1e-12, 500, &Progress::none()).unwrap();
         assert!(out.relative_residual <= 1e-12, "{out:?}");
         let mut cols: Vec<Vec<f64>> = (0..9).map(|c| b.iter().map(|v| v[c]).collect()).collect();
         CholeskySolver::new(&a).unwrap().solve_columns(&mut cols).unwrap();

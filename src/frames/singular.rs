@@ -39,6 +39,7 @@ use super::quaternion::{Mat3, Quat};
 use super::sh4::{dot9, nearest_frame_to_tolerance};
 use crate::mesh::TetMesh;
 use rayon::prelude::*;
+use crate::progress::{Cancelled, Progress};
 use serde::Serialize;
 
 /// Type of a singular edge.
@@ -101,11 +102,24 @@ pub struct SingularReport {
 }
 
 /// Frame per tet: the projection of the mean 9-vector of its vertices,
-/// warm-started at the vertex frame that aligns best with it.
-pub fn tet_frames(mesh: &TetMesh, sh9_per_vertex: &[[f64; 9]], rotation_per_vertex: &[Mat3]) -> Vec<Mat3> {
-    mesh.tets
+/// warm-started at the vertex frame that aligns best with it. `progress` is
+/// checked per tet (a cancelled pass skips the remaining projections).
+///
+/// # Errors
+/// [`Cancelled`] when `progress` is cancelled.
+pub fn tet_frames(
+    mesh: &TetMesh,
+    sh9_per_vertex: &[[f64; 9]],
+    rotation_per_vertex: &[Mat3],
+    progress: &Progress,
+) -> Result<Vec<Mat3>, Cancelled> {
+    let frames = mesh
+        .tets
         .par_iter()
         .map(|t| {
+            if progress.is_cancelled() {
+                return Mat3::identity();
+            }
             let mut s = [0.0; 9];
             for v in t {
                 for c in 0..9 {
@@ -116,7 +130,9 @@ pub fn tet_frames(mesh: &TetMesh, sh9_per_vertex: &[[f64; 9]], rotation_per_vert
             let hint = best.map(|v| rotation_per_vertex[v.idx()]);
             nearest_frame_to_tolerance(&s, hint.as_ref(), 0.3, 1e-9).rotation
         })
-        .collect()
+        .collect();
+    progress.check()?;
+    Ok(frames)
 }
 
 /// The element of the binary octahedral group closest to the unit
@@ -183,7 +199,17 @@ struct ChunkResult {
 /// `boundary_vertex[v]` tells which vertices lie on the boundary (for the
 /// curve check). `axis_tolerance_deg` is the largest angle between a
 /// quarter-turn holonomy axis and the (unoriented) edge for valence 3/5.
-pub fn singular_edges(mesh: &TetMesh, frame_per_tet: &[Mat3], boundary_vertex: &[bool], axis_tolerance_deg: f64) -> (Vec<SingularEdge>, SingularReport) {
+/// `progress` is checked between the passes and per chunk of edges.
+///
+/// # Errors
+/// [`Cancelled`] when `progress` is cancelled.
+pub fn singular_edges(
+    mesh: &TetMesh,
+    frame_per_tet: &[Mat3],
+    boundary_vertex: &[bool],
+    axis_tolerance_deg: f64,
+    progress: &Progress,
+) -> Result<(Vec<SingularEdge>, SingularReport), Cancelled> {
     let n = mesh.n_vertices();
     let group = octa_group();
     let quats: Vec<Quat> = frame_per_tet.par_iter().map(Quat::from_matrix).collect();
@@ -205,12 +231,17 @@ pub fn singular_edges(mesh: &TetMesh, frame_per_tet: &[Mat3], boundary_vertex: &
             fill[v.idx()] += 1;
         }
     }
+    progress.check()?;
     let edges = crate::fem::tet_p1::tet_mesh_edges(mesh);
+    progress.check()?;
     let cos_tol = axis_tolerance_deg.to_radians().cos();
     let chunks: Vec<ChunkResult> = edges
         .par_chunks(4096)
         .map(|chunk| {
             let mut res = ChunkResult::default();
+            if progress.is_cancelled() {
+                return res;
+            }
             let mut ring = [0u32; MAX_RING];
             let mut link = [[0u32; 2]; MAX_RING];
             let mut order = [(0u8, false); MAX_RING];
@@ -278,6 +309,7 @@ pub fn singular_edges(mesh: &TetMesh, frame_per_tet: &[Mat3], boundary_vertex: &
             res
         })
         .collect();
+    progress.check()?;
     let mut report = SingularReport::default();
     let mut out = Vec::new();
     for c in chunks {
@@ -293,7 +325,7 @@ pub fn singular_edges(mesh: &TetMesh, frame_per_tet: &[Mat3], boundary_vertex: &
         }
     }
     curve_structure(&out, boundary_vertex, &mut report);
-    (out, report)
+    Ok((out, report))
 }
 
 enum RingOrder {
@@ -456,7 +488,7 @@ pub(crate) mod tests {
                     super::super::quaternion::rotation_from_vector(&(crate::geom::Vec3::z() * (sign * phi / 4.0))) * o
                 })
                 .collect();
-            let (edges, report) = singular_edges(&mesh, &frames, &boundary, 30.0);
+            let (edges, report) = singular_edges(&mesh, &frames, &boundary, 30.0, &Progress::none()).unwrap();
             assert_eq!(edges.len(), 3, "{edges:?}");
             for e in &edges {
                 let [a, b] = e.vertices.map(|v| mesh.positions[v as usize]);
@@ -468,7 +500,7 @@ pub(crate) mod tests {
         }
         // A smooth field has no singular edge.
         let frames: Vec<Mat3> = mesh.tets.iter().map(|_| Mat3::identity()).collect();
-        assert!(singular_edges(&mesh, &frames, &boundary, 30.0).0.is_empty());
+        assert!(singular_edges(&mesh, &frames, &boundary, 30.0, &Progress::none()).unwrap().0.is_empty());
     }
 
     #[test]

@@ -51,6 +51,7 @@ use crate::geom::Vec3;
 use crate::mesh::{TetMesh, TriMesh, VertexId};
 use rayon::prelude::*;
 use std::collections::HashMap;
+use crate::progress::{Cancelled, Progress};
 
 /// Marker for "no surface triangle".
 pub const NO_TRIANGLE: u32 = u32::MAX;
@@ -183,6 +184,28 @@ fn edge_key(a: u32, b: u32) -> u64 {
 /// (checked by the caller); the result may be empty when the volume is
 /// thinner than the lattice.
 pub fn isosurface_stuffing(surface: &TriMesh, bvh: &TriangleBvh, params: &StuffingParams) -> StuffedVolume {
+    match isosurface_stuffing_cancellable(surface, bvh, params, &Progress::none()) {
+        Ok(v) => v,
+        Err(Cancelled) => unreachable!("Progress::none() is never cancelled"),
+    }
+}
+
+/// Lattice slabs (or tets) between two cancellation checks in the
+/// sequential passes.
+const CHECK_EVERY: usize = 1 << 14;
+
+/// [`isosurface_stuffing`], checking `progress` for cancellation in every
+/// pass over the lattice (per row, slab or chunk: each an atomic load), so
+/// a cancel stops a large lattice within milliseconds.
+///
+/// # Errors
+/// [`Cancelled`] when `progress` is cancelled.
+pub fn isosurface_stuffing_cancellable(
+    surface: &TriMesh,
+    bvh: &TriangleBvh,
+    params: &StuffingParams,
+    progress: &Progress,
+) -> Result<StuffedVolume, Cancelled> {
     let h = params.spacing;
     let bb = surface.bounding_box().unwrap_or_else(|| crate::geom::BoundingBox { min: Vec3::zeros(), max: Vec3::zeros() });
     let offset = Vec3::from(params.lattice_offset) * h;
@@ -193,22 +216,29 @@ pub fn isosurface_stuffing(surface: &TriMesh, bvh: &TriangleBvh, params: &Stuffi
     let lat = Lattice { origin, h, nx, ny, nz, n_black: (nx + 1) * (ny + 1) * (nz + 1) };
 
     // 1. Signs by row parity.
-    let (mut sign, n_recast_rows) = lattice_signs(&lat, bvh, bb.max.x - origin.x + 2.0 * h);
+    let (mut sign, n_recast_rows) = lattice_signs(&lat, bvh, bb.max.x - origin.x + 2.0 * h, progress)?;
+    progress.set(0.3);
 
     // 2. Cut points on sign-changing edges.
-    let edges = sign_changing_edges(&lat, &sign);
+    let edges = sign_changing_edges(&lat, &sign, progress)?;
     let mut cuts: Vec<Cut> = edges
         .par_iter()
         .map(|&(a, b)| {
             let (inside, outside) = if sign[a as usize] < 0 { (a, b) } else { (b, a) };
+            if progress.is_cancelled() {
+                return Cut { pos: Vec3::zeros(), triangle: NO_TRIANGLE, a: inside, b: outside, fallback: false };
+            }
             compute_cut(&lat, bvh, inside, outside)
         })
         .collect();
+    progress.check()?;
+    progress.set(0.5);
     let n_cut_fallbacks = cuts.iter().filter(|c| c.fallback).count();
 
     // 3. Warp.
     let mut position_override: HashMap<u32, (Vec3, u32)> = HashMap::new();
     let n_warped = warp(&lat, &mut sign, &mut cuts, &mut position_override, params);
+    progress.check()?;
     let cut_index: HashMap<u64, u32> =
         cuts.iter().enumerate().filter(|(_, c)| sign[c.a as usize] * sign[c.b as usize] < 0).map(|(i, c)| (edge_key(c.a, c.b), i as u32)).collect();
 
@@ -224,6 +254,7 @@ pub fn isosurface_stuffing(surface: &TriMesh, bvh: &TriangleBvh, params: &Stuffi
         tets: Vec::new(),
     };
     for k in 0..nz {
+        progress.check()?;
         for j in 0..ny {
             for i in 0..nx {
                 let c = lat.red(i, j, k);
@@ -253,7 +284,11 @@ pub fn isosurface_stuffing(surface: &TriMesh, bvh: &TriangleBvh, params: &Stuffi
     let mut tri_of = Vec::new();
     let mut out_tets = Vec::with_capacity(tets.len());
     let mut n_cut_points = 0;
-    for t in &tets {
+    progress.set(0.8);
+    for (ti, t) in tets.iter().enumerate() {
+        if ti % CHECK_EVERY == 0 {
+            progress.check()?;
+        }
         let ids = t.map(|r| {
             let (slot, pos, tri) = match r {
                 PRef::Lattice(l) => {
@@ -277,12 +312,12 @@ pub fn isosurface_stuffing(surface: &TriMesh, bvh: &TriangleBvh, params: &Stuffi
     }
     let mut mesh = TetMesh { positions, tets: out_tets };
     mesh.orient_positive();
-    StuffedVolume { mesh, surface_triangle_per_vertex: tri_of, n_warped, n_cut_points, n_steiner, n_cut_fallbacks, n_recast_rows }
+    Ok(StuffedVolume { mesh, surface_triangle_per_vertex: tri_of, n_warped, n_cut_points, n_steiner, n_cut_fallbacks, n_recast_rows })
 }
 
 /// Inside (−1) / outside (+1) sign of every lattice vertex by row parity;
 /// returns the signs and the number of recast rows.
-fn lattice_signs(lat: &Lattice, bvh: &TriangleBvh, length: f64) -> (Vec<i8>, usize) {
+fn lattice_signs(lat: &Lattice, bvh: &TriangleBvh, length: f64, progress: &Progress) -> Result<(Vec<i8>, usize), Cancelled> {
     let mut sign = vec![1i8; lat.n_vertices()];
     // Rows: (is_red, j, k).
     let mut rows = Vec::with_capacity((lat.ny + 1) * (lat.nz + 1) + lat.ny * lat.nz);
@@ -304,6 +339,9 @@ fn lattice_signs(lat: &Lattice, bvh: &TriangleBvh, length: f64) -> (Vec<i8>, usi
             let z = lat.origin.z + (k as f64 + shift) * lat.h;
             let x0 = lat.origin.x - lat.h;
             let npts = if red { lat.nx } else { lat.nx + 1 };
+            if progress.is_cancelled() {
+                return (Vec::new(), false);
+            }
             let mut hits = Vec::new();
             let mut recast = false;
             let mut xs: Vec<f64> = Vec::new();
@@ -332,6 +370,7 @@ fn lattice_signs(lat: &Lattice, bvh: &TriangleBvh, length: f64) -> (Vec<i8>, usi
             (out, recast)
         })
         .collect();
+    progress.check()?;
     let mut n_recast = 0;
     for (&(red, j, k), (row, recast)) in rows.iter().zip(results) {
         n_recast += recast as usize;
@@ -340,11 +379,11 @@ fn lattice_signs(lat: &Lattice, bvh: &TriangleBvh, length: f64) -> (Vec<i8>, usi
             sign[id as usize] = s;
         }
     }
-    (sign, n_recast)
+    Ok((sign, n_recast))
 }
 
 /// All lattice edges whose endpoints have opposite signs, as id pairs.
-fn sign_changing_edges(lat: &Lattice, sign: &[i8]) -> Vec<(u32, u32)> {
+fn sign_changing_edges(lat: &Lattice, sign: &[i8], progress: &Progress) -> Result<Vec<(u32, u32)>, Cancelled> {
     let mut out = Vec::new();
     let mut check = |a: u32, b: u32| {
         if sign[a as usize] != sign[b as usize] {
@@ -353,6 +392,7 @@ fn sign_changing_edges(lat: &Lattice, sign: &[i8]) -> Vec<(u32, u32)> {
     };
     let (nx, ny, nz) = (lat.nx, lat.ny, lat.nz);
     for k in 0..=nz {
+        progress.check()?;
         for j in 0..=ny {
             for i in 0..=nx {
                 let a = lat.black(i, j, k);
@@ -369,6 +409,7 @@ fn sign_changing_edges(lat: &Lattice, sign: &[i8]) -> Vec<(u32, u32)> {
         }
     }
     for k in 0..nz {
+        progress.check()?;
         for j in 0..ny {
             for i in 0..nx {
                 let r = lat.red(i, j, k);
@@ -387,7 +428,7 @@ fn sign_changing_edges(lat: &Lattice, sign: &[i8]) -> Vec<(u32, u32)> {
             }
         }
     }
-    out
+    Ok(out)
 }
 
 /// The crossing of the lattice edge `inside → outside` nearest to `inside`.

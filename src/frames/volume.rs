@@ -19,7 +19,8 @@
 
 use super::bvh::TriangleBvh;
 use super::error::{FramesError, OpenLoop};
-use super::stuffing::{StuffedVolume, StuffingParams, isosurface_stuffing};
+use super::stuffing::{StuffedVolume, StuffingParams, isosurface_stuffing_cancellable};
+use crate::progress::Progress;
 use crate::fem::tet_p1::tet_p1_gradients;
 use crate::geom::Vec3;
 use crate::mesh::boundary::boundary_loops;
@@ -95,6 +96,10 @@ pub fn check_closed(surface: &TriMesh) -> Result<(), FramesError> {
 /// allowed tet bounds the memory of the mesher.
 pub const LATTICE_CELLS_PER_TET: f64 = 4.0;
 
+/// Most lattice cells whatever `max_tets`: the mesher numbers lattice
+/// vertices (about 2 per cell) with `u32`.
+pub const MAX_LATTICE_CELLS: f64 = (u32::MAX / 4) as f64;
+
 /// The lattice spacing for `surface`: `target_size` if given (error if it
 /// would exceed `max_tets`), else the mean edge length, enlarged until both
 /// the estimated tet count `12 V / h³` fits `max_tets` and the lattice over
@@ -109,7 +114,7 @@ pub fn lattice_spacing(surface: &TriMesh, target_size: Option<f64>, max_tets: us
     let ext = surface.bounding_box().map_or(Vec3::zeros(), |b| b.max - b.min);
     let tets = |h: f64| 12.0 * volume / (h * h * h);
     let cells = |h: f64| (ext.x / h + 4.0) * (ext.y / h + 4.0) * (ext.z / h + 4.0);
-    let max_cells = LATTICE_CELLS_PER_TET * max_tets as f64;
+    let max_cells = (LATTICE_CELLS_PER_TET * max_tets as f64).min(MAX_LATTICE_CELLS);
     // Both counts decrease with h: the cap is the largest of the two limits.
     let fits = |h: f64| tets(h) <= max_tets as f64 && cells(h) <= max_cells;
     if let Some(h) = target_size {
@@ -155,20 +160,40 @@ pub fn lattice_spacing(surface: &TriMesh, target_size: Option<f64>, max_tets: us
 /// [`FramesError::NoInterior`] when nothing fits inside;
 /// [`FramesError::InvalidVolume`] if the result fails validation (a bug).
 pub fn tetrahedralize_enclosed_volume(surface: &TriMesh, spacing: f64, alpha_long: f64, alpha_short: f64) -> Result<(StuffedVolume, VolumeReport), FramesError> {
+    tetrahedralize_enclosed_volume_cancellable(surface, spacing, alpha_long, alpha_short, &Progress::none())
+}
+
+/// [`tetrahedralize_enclosed_volume`], checking `progress` for
+/// cancellation inside the mesher and between the quality measures.
+///
+/// # Errors
+/// As [`tetrahedralize_enclosed_volume`], and [`FramesError::Cancelled`].
+pub fn tetrahedralize_enclosed_volume_cancellable(
+    surface: &TriMesh,
+    spacing: f64,
+    alpha_long: f64,
+    alpha_short: f64,
+    progress: &Progress,
+) -> Result<(StuffedVolume, VolumeReport), FramesError> {
     let bvh = TriangleBvh::new(surface);
-    let stuffed = isosurface_stuffing(surface, &bvh, &StuffingParams::new(spacing, alpha_long, alpha_short));
+    progress.check()?;
+    let stuffed = isosurface_stuffing_cancellable(surface, &bvh, &StuffingParams::new(spacing, alpha_long, alpha_short), progress)?;
     let enclosed = surface.signed_volume().abs();
     if stuffed.mesh.tets.is_empty() {
         return Err(FramesError::NoInterior { spacing, volume: enclosed });
     }
+    progress.check()?;
     stuffed.mesh.validate()?;
+    progress.check()?;
     let boundary = boundary_vertices(&stuffed.mesh);
+    progress.check()?;
     let max_dist = boundary
         .par_iter()
         .enumerate()
         .filter(|(_, b)| **b)
         .map(|(v, _)| bvh.closest_point(&stuffed.mesh.positions[v]).map_or(0.0, |c| c.0))
         .reduce(|| 0.0, f64::max);
+    progress.check()?;
     let (min_d, max_d) = dihedral_angle_range(&stuffed.mesh);
     let volume = stuffed.mesh.volume();
     let relative_error = if enclosed > 0.0 { (volume - enclosed) / enclosed } else { 0.0 };

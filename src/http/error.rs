@@ -76,6 +76,7 @@ const KINDS: &[(&str, StatusCode, &str)] = &[
     ("unsupported-media-type", StatusCode::UNSUPPORTED_MEDIA_TYPE, "Unsupported media type"),
     ("unknown-format", StatusCode::UNSUPPORTED_MEDIA_TYPE, "Unknown mesh format"),
     ("invalid-params", StatusCode::UNPROCESSABLE_ENTITY, "Invalid pipeline parameters"),
+    ("memory-budget-exceeded", StatusCode::UNPROCESSABLE_ENTITY, "Job exceeds the server's memory budget"),
     ("queue-full", StatusCode::TOO_MANY_REQUESTS, "Job queue full"),
     ("service-unavailable", StatusCode::SERVICE_UNAVAILABLE, "Service unavailable"),
     // Job failures caused by the input (reader errors and limits).
@@ -97,6 +98,7 @@ const KINDS: &[(&str, StatusCode, &str)] = &[
     ("invalid-target-size", StatusCode::UNPROCESSABLE_ENTITY, "The volume target size gives no or too many tetrahedra"),
     ("time-limit-exceeded", StatusCode::UNPROCESSABLE_ENTITY, "Job time limit exceeded"),
     ("interrupted", StatusCode::SERVICE_UNAVAILABLE, "Job interrupted repeatedly"),
+    ("crashed-server", StatusCode::UNPROCESSABLE_ENTITY, "Job stopped the server twice"),
     ("internal-error", StatusCode::INTERNAL_SERVER_ERROR, "Internal server error"),
 ];
 
@@ -249,6 +251,11 @@ impl From<JobsError> for ApiError {
                 "queue-full",
                 format!("the job queue is full ({max_queued} jobs waiting); retry after the Retry-After delay"),
             ),
+            e @ JobsError::MemoryBudgetExceeded { estimated_bytes, budget_bytes } => {
+                Self::new("memory-budget-exceeded", e.to_string())
+                    .with("estimated_bytes", estimated_bytes)
+                    .with("budget_bytes", budget_bytes)
+            }
             other => Self::internal(other),
         }
     }

@@ -48,6 +48,9 @@ pub fn job_json(rec: &JobRecord) -> Value {
         "progress": rec.progress,
         "stage_seconds": rec.stage_seconds,
         "attempts": rec.attempts,
+        "crashes": rec.crashes,
+        "memory_estimate_bytes": rec.memory_estimate_bytes,
+        "stop_requested": rec.stop_requested,
         "summary": rec.summary,
         "error": rec.error.as_ref().map(ApiError::job_problem),
         "artifacts": artifacts,
@@ -229,16 +232,23 @@ pub async fn list_jobs(
     })))
 }
 
-/// `POST /v1/jobs/{id}/cancel`: stop a queued or running job, keep its record.
-pub async fn cancel_job(State(st): State<AppState>, Path(id): Path<String>) -> Result<Json<Value>, ApiError> {
+/// `POST /v1/jobs/{id}/cancel`: stop a queued or running job, keep its
+/// record. 200 once it stopped; 202 with `stop_requested` while the stop is
+/// pending.
+pub async fn cancel_job(State(st): State<AppState>, Path(id): Path<String>) -> Result<Response, ApiError> {
     let rec = st.jobs.cancel(parse_id(&id)?).await?;
-    Ok(Json(job_json(&rec)))
+    let status = if rec.stop_requested { StatusCode::ACCEPTED } else { StatusCode::OK };
+    Ok((status, Json(job_json(&rec))).into_response())
 }
 
 /// `DELETE /v1/jobs/{id}`: cancel if running, then remove record and files.
-pub async fn delete_job(State(st): State<AppState>, Path(id): Path<String>) -> Result<StatusCode, ApiError> {
-    st.jobs.delete(parse_id(&id)?).await?;
-    Ok(StatusCode::NO_CONTENT)
+/// 204 once gone; 202 with the job (`stop_requested`) while the running job
+/// has not stopped yet (its files go when it does).
+pub async fn delete_job(State(st): State<AppState>, Path(id): Path<String>) -> Result<Response, ApiError> {
+    match st.jobs.delete(parse_id(&id)?).await? {
+        None => Ok(StatusCode::NO_CONTENT.into_response()),
+        Some(rec) => Ok((StatusCode::ACCEPTED, Json(job_json(&rec))).into_response()),
+    }
 }
 
 /// `GET /v1/jobs/{id}/artifacts/{name}`: the file, with Range support.

@@ -26,6 +26,7 @@ pub mod msh41;
 pub mod msh_common;
 pub mod obj;
 pub mod ply;
+pub mod sizes;
 pub mod source;
 pub mod stl;
 pub mod stl_write;
@@ -36,6 +37,7 @@ pub mod write_error;
 pub use error::{IoError, Location};
 pub use format::Format;
 pub use load::{LoadOptions, LoadedMesh, load_bytes, load_path, load_reader};
+pub use sizes::{InputSizes, scan_input_sizes};
 pub use source::{Limits, RawMesh};
 
 pub use write_error::WriteError;

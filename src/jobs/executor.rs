@@ -34,6 +34,9 @@ pub struct JobInput {
     /// Server-wide cap on triangles; the executor applies the smaller of this
     /// and the job's own cap.
     pub max_triangles: usize,
+    /// Server-wide cap on the frames stage's `max_tets`; the executor applies
+    /// the smaller of this and the job's own.
+    pub max_tets: usize,
 }
 
 /// What a successful execution returns.
@@ -101,5 +104,23 @@ impl<E: Executor> Executor for Delayed<E> {
         let mut out = self.inner.execute(job, &progress.sub(0.1, 1.0))?;
         out.stage_seconds.insert("delay".to_string(), waited);
         Ok(out)
+    }
+}
+
+/// Wraps an executor with a delay that ignores cancellation, reported as
+/// stage `stall`: a stage that cannot stop at once. Used by the tests of
+/// cancel/delete answering 202 while the stop is pending (hidden CLI flag).
+pub struct Stalled<E> {
+    /// The executor run after the stall (it sees a cancel then).
+    pub inner: E,
+    /// How long to ignore cancellation first.
+    pub stall: Duration,
+}
+
+impl<E: Executor> Executor for Stalled<E> {
+    fn execute(&self, job: &JobInput, progress: &Progress) -> Result<JobOutcome, ExecError> {
+        progress.stage("stall", 0.0, 0.0);
+        std::thread::sleep(self.stall);
+        self.inner.execute(job, progress)
     }
 }

@@ -7,12 +7,14 @@
 //! - [`executor`]: what a worker runs ([`Executor`]); the service runs
 //!   [`pipeline_executor::PipelineExecutor`], tests inject fakes.
 //! - [`metrics`]: Prometheus text.
+//! - [`memory`]: the memory budget (`--memory-budget` sizes, default).
 //!
 //! This is the only module that touches both rayon and tokio: numerical work
 //! runs on the rayon pool, store and file operations on tokio's blocking
 //! pool, and the async side only awaits.
 
 pub mod executor;
+pub mod memory;
 pub mod metrics;
 pub mod model;
 pub mod pipeline_executor;
@@ -20,7 +22,7 @@ pub mod runner;
 pub mod service;
 pub mod store;
 
-pub use executor::{Delayed, ExecError, Executor, JobInput, JobOutcome};
+pub use executor::{Delayed, ExecError, Executor, JobInput, JobOutcome, Stalled};
 pub use model::{Artifact, JobError, JobId, JobPage, JobRecord, JobState, NewJob};
 pub use runner::JobsConfig;
 pub use service::{JobService, JobsError};

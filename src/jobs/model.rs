@@ -159,6 +159,15 @@ pub struct JobRecord {
     pub artifacts: Vec<Artifact>,
     /// Number of times a worker claimed the job.
     pub attempts: u32,
+    /// Estimated peak memory of the job in bytes (0 for jobs stored before
+    /// estimates existed).
+    pub memory_estimate_bytes: u64,
+    /// Times the server process died while the job ran (start-up recovery
+    /// counts them; a graceful shutdown is not a crash).
+    pub crashes: u32,
+    /// A stop (cancel or delete) was asked and the job has not stopped yet
+    /// (live, not stored).
+    pub stop_requested: bool,
 }
 
 /// A job to insert: the upload has already been written to `upload_path`.

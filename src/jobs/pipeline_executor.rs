@@ -1,5 +1,6 @@
 //! The executor the service runs: [`crate::pipeline::run_pipeline`] on the
-//! job's upload, with the server's triangle cap applied on top of the job's.
+//! job's upload, with the server's triangle and tetrahedron caps applied on top of the
+//! job's.
 
 use crate::io::Format;
 use crate::pipeline::{PipelineError, PipelineParams, run_pipeline};
@@ -18,6 +19,7 @@ impl Executor for PipelineExecutor {
             ExecError::Failed(JobError::new("internal-error", format!("stored parameters do not parse: {e}")))
         })?;
         params.load.max_triangles = params.load.max_triangles.min(job.max_triangles);
+        params.frames.max_tets = params.frames.max_tets.min(job.max_tets);
         let format = match job.format.as_deref() {
             Some(name) => Some(Format::from_name(name).ok_or_else(|| {
                 ExecError::Failed(JobError::new("unknown-format", format!("unknown input format `{name}`")))

@@ -6,6 +6,15 @@
 //! queue itself is the `queued` rows of the store, so it survives restarts.
 //! Every job runs inside `catch_unwind`: a panic fails that job only.
 //!
+//! Memory admission: a job starts only when its peak-memory estimate fits
+//! beside the estimates of the running jobs within the memory budget (a job
+//! starts anyway when nothing runs: it was admitted at submission). The
+//! queue is strict FIFO: when the oldest queued job does not fit, nothing
+//! younger starts before it, so a large job waits for the running ones to
+//! end but is never overtaken forever by a stream of small ones. A job that
+//! crashed the process before runs alone: it starts only when nothing runs,
+//! and nothing starts beside it.
+//!
 //! Lock order: `running` before the store's connection. The dispatcher claims
 //! a job and registers it in `running` under one lock, so a concurrent cancel
 //! or delete sees the job either queued (in the store) or running (in the map).
@@ -25,7 +34,7 @@ use crate::progress::{Progress, ProgressSink};
 use super::executor::{ExecError, Executor, JobInput, JobOutcome};
 use super::metrics::Metrics;
 use super::model::{Artifact, JobError, JobId, JobRecord, JobState};
-use super::store::Store;
+use super::store::{QueueHead, Store};
 
 /// Settings of the job service.
 #[derive(Debug, Clone)]
@@ -42,6 +51,13 @@ pub struct JobsConfig {
     pub max_attempts: u32,
     /// Server-wide triangle cap, applied on top of each job's own. Default 5e6.
     pub max_triangles: usize,
+    /// Server-wide cap on the frames stage's `max_tets`, applied on top of
+    /// each job's own (the volume mesher's memory follows it). Default 2e6.
+    pub max_tets: usize,
+    /// Bytes the estimated peak memory of the running jobs may add up to; a
+    /// job estimated above it is refused at submission. Default: unlimited
+    /// (the CLI sets a fraction of physical memory).
+    pub memory_budget: u64,
     /// Least time between two progress writes to the store. Default 250 ms.
     pub progress_interval: Duration,
 }
@@ -56,6 +72,8 @@ impl JobsConfig {
             job_timeout: Duration::from_secs(3600),
             max_attempts: 3,
             max_triangles: 5_000_000,
+            max_tets: 2_000_000,
+            memory_budget: u64::MAX,
             progress_interval: Duration::from_millis(250),
         }
     }
@@ -106,6 +124,10 @@ pub(crate) struct RunningJob {
     reason: Mutex<Option<StopReason>>,
     deadline: Instant,
     pub live: Mutex<Live>,
+    /// Its peak-memory estimate, counted against the budget while it runs.
+    memory_estimate: u64,
+    /// It crashed the process before: nothing runs beside it.
+    alone: bool,
 }
 
 fn lock<T>(m: &Mutex<T>) -> MutexGuard<'_, T> {
@@ -113,9 +135,11 @@ fn lock<T>(m: &Mutex<T>) -> MutexGuard<'_, T> {
 }
 
 impl RunningJob {
-    fn new(timeout: Duration) -> Self {
+    fn new(timeout: Duration, memory_estimate: u64, alone: bool) -> Self {
         let now = Instant::now();
         Self {
+            memory_estimate,
+            alone,
             cancel: Arc::new(AtomicBool::new(false)),
             reason: Mutex::new(None),
             deadline: now + timeout,
@@ -138,7 +162,8 @@ impl RunningJob {
         self.cancel.store(true, Ordering::Relaxed);
     }
 
-    fn reason(&self) -> Option<StopReason> {
+    /// Why the job was asked to stop, if it was.
+    pub fn reason(&self) -> Option<StopReason> {
         *lock(&self.reason)
     }
 
@@ -187,14 +212,29 @@ pub(crate) fn dispatch_loop(inner: Arc<Inner>) {
             }
         }
         while running.len() < inner.config.workers {
-            match inner.store.claim_next() {
+            let head = match inner.store.queue_head() {
+                Ok(Some(head)) => head,
+                Ok(None) => break,
+                Err(e) => {
+                    error!(error = %e, "cannot read the queue");
+                    break;
+                }
+            };
+            if !may_start(&running, head, inner.config.memory_budget) {
+                break;
+            }
+            match inner.store.claim(head.id) {
                 Ok(Some(rec)) => {
-                    let job = Arc::new(RunningJob::new(inner.config.job_timeout));
+                    if head.crashes > 0 {
+                        warn!(job = %rec.id, crashes = head.crashes, "running alone a job that crashed the server");
+                    }
+                    let job = Arc::new(RunningJob::new(inner.config.job_timeout, head.memory_estimate_bytes, head.crashes > 0));
                     running.insert(rec.id, job.clone());
                     let inner2 = inner.clone();
                     inner.pool.spawn(move || run_job(&inner2, rec, &job));
                 }
-                Ok(None) => break,
+                // Cancelled or deleted since it was read: look again.
+                Ok(None) => {}
                 Err(e) => {
                     error!(error = %e, "cannot claim the next job");
                     break;
@@ -206,6 +246,21 @@ pub(crate) fn dispatch_loop(inner: Arc<Inner>) {
             Err(p) => p.into_inner().0,
         };
     }
+}
+
+/// Whether the queue's oldest job may start beside the `running` ones: not
+/// beside a job that runs alone, alone itself when it crashed the process
+/// before, and only when its estimate fits the `budget` beside theirs.
+/// Anything may start when nothing runs.
+fn may_start(running: &HashMap<JobId, Arc<RunningJob>>, head: QueueHead, budget: u64) -> bool {
+    if running.is_empty() {
+        return true;
+    }
+    if head.crashes > 0 || running.values().any(|j| j.alone) {
+        return false;
+    }
+    let used = running.values().fold(0u64, |sum, j| sum.saturating_add(j.memory_estimate));
+    used.saturating_add(head.memory_estimate_bytes) <= budget
 }
 
 /// Persists progress of one job, throttled.
@@ -309,6 +364,7 @@ fn run_job(inner: &Arc<Inner>, rec: JobRecord, job: &Arc<RunningJob>) {
                 params: rec.params.clone(),
                 out_dir: out_dir.clone(),
                 max_triangles: inner.config.max_triangles,
+                max_tets: inner.config.max_tets,
             };
             let sink = Arc::new(JobSink { inner: inner.clone(), id: rec.id, job: job.clone() });
             let progress = Progress::new(sink, job.cancel.clone());

@@ -15,8 +15,10 @@ use super::model::{JobId, JobPage, JobRecord, JobState, NewJob};
 use super::runner::{Inner, JobsConfig, StopReason, dispatch_loop, panic_message, remove_job_dir};
 use super::store::{Store, StoreError};
 
-/// How long cancel and delete wait for a running job to stop.
-pub const STOP_WAIT: Duration = Duration::from_secs(2);
+/// How long cancel and delete wait for a running job to stop before they
+/// answer that the stop is pending (the stages check for cancellation
+/// every few milliseconds, so a second is ample).
+pub const STOP_WAIT: Duration = Duration::from_secs(1);
 
 /// Errors of the job service.
 #[derive(Debug, thiserror::Error)]
@@ -37,6 +39,17 @@ pub enum JobsError {
     QueueFull {
         /// The configured queue length.
         max_queued: usize,
+    },
+    /// The job's estimated peak memory exceeds the server's budget.
+    #[error(
+        "the job's estimated peak memory of {estimated_bytes} bytes exceeds this server's memory budget of \
+         {budget_bytes} bytes; lower its sizes (fewer triangles, a smaller frames.max_tets) or its stages"
+    )]
+    MemoryBudgetExceeded {
+        /// The estimate.
+        estimated_bytes: u64,
+        /// The budget (`--memory-budget`).
+        budget_bytes: u64,
     },
     /// No job with this id.
     #[error("job {0} does not exist")]
@@ -81,8 +94,13 @@ impl JobService {
         std::fs::create_dir_all(&tmp).map_err(io_err(format!("cannot create {}", tmp.display())))?;
         let store = Store::open(&config.data_dir.join("meshatlas.sqlite3"))?;
         let recovery = store.recover_interrupted(config.max_attempts)?;
-        if !recovery.requeued.is_empty() || !recovery.failed.is_empty() {
-            warn!(requeued = recovery.requeued.len(), failed = recovery.failed.len(), "recovered interrupted jobs");
+        if !recovery.requeued.is_empty() || !recovery.failed.is_empty() || !recovery.crashed.is_empty() {
+            warn!(
+                requeued = recovery.requeued.len(),
+                failed = recovery.failed.len(),
+                crashed = recovery.crashed.len(),
+                "recovered interrupted jobs"
+            );
         }
         remove_orphans(&store, &jobs_dir)?;
         let workers = config.workers.max(1);
@@ -155,6 +173,20 @@ impl JobService {
                 let _ = std::fs::remove_file(&new.upload_path);
                 remove_job_dir(&inner.config, id);
             };
+            let estimate = match memory_estimate(&inner.config, &new) {
+                Ok(bytes) if bytes <= inner.config.memory_budget => bytes,
+                Ok(bytes) => {
+                    cleanup(inner);
+                    return Err(JobsError::MemoryBudgetExceeded {
+                        estimated_bytes: bytes,
+                        budget_bytes: inner.config.memory_budget,
+                    });
+                }
+                Err(e) => {
+                    cleanup(inner);
+                    return Err(e);
+                }
+            };
             let moved = std::fs::create_dir_all(dir.join("input"))
                 .and_then(|()| std::fs::rename(&new.upload_path, &input_path))
                 .map_err(io_err(format!("cannot store the upload in {}", dir.display())));
@@ -168,6 +200,7 @@ impl JobService {
                 new.input_bytes,
                 new.format.as_deref(),
                 &new.params,
+                estimate,
                 inner.config.max_queued,
             );
             match rec {
@@ -247,7 +280,8 @@ impl JobService {
 
     /// Cancels a queued or running job (a running one stops at its next
     /// progress check, waited for up to [`STOP_WAIT`]). A finished job is
-    /// left as it is. Returns the job as it is afterwards.
+    /// left as it is. Returns the job as it is afterwards: still `running`
+    /// with `stop_requested` when it did not stop within the wait.
     ///
     /// # Errors
     /// [`JobsError::NotFound`], or [`JobsError::Store`] on database failure.
@@ -260,27 +294,37 @@ impl JobService {
         self.get(id).await
     }
 
-    /// Cancels the job if needed and removes its record and files.
+    /// Cancels the job if needed and removes its record and files. Returns
+    /// the job as it was when it had not stopped within [`STOP_WAIT`] (its
+    /// files go when it stops), `None` when it is gone.
     ///
     /// # Errors
     /// [`JobsError::NotFound`], or storage errors.
-    pub async fn delete(&self, id: JobId) -> Result<(), JobsError> {
+    pub async fn delete(&self, id: JobId) -> Result<Option<JobRecord>, JobsError> {
         let was_running = self.blocking(move |inner| Self::stop(inner, id, StopReason::Delete)).await?;
+        let mut pending = None;
         if was_running {
             self.wait_stopped(id).await;
+            if self.inner.running().contains_key(&id) {
+                pending = self.get(id).await.ok();
+                info!(job = %id, "job deletion pending: it has not stopped yet");
+            }
             self.blocking(move |inner| {
                 inner.store.delete(id)?;
                 Ok(())
             })
             .await?;
         }
-        self.blocking(move |inner| {
-            remove_job_dir(&inner.config, id);
-            Ok(())
-        })
-        .await?;
+        // A job still running removes its own directory when it stops.
+        if pending.is_none() {
+            self.blocking(move |inner| {
+                remove_job_dir(&inner.config, id);
+                Ok(())
+            })
+            .await?;
+        }
         info!(job = %id, "job deleted");
-        Ok(())
+        Ok(pending)
     }
 
     /// Path of a finished job's artifact, if the job lists it.
@@ -347,7 +391,21 @@ impl JobService {
     }
 }
 
+/// The peak-memory estimate of a submitted job: its stored parameters with
+/// the server's caps applied, and the sizes scanned from its upload.
+fn memory_estimate(config: &JobsConfig, new: &NewJob) -> Result<u64, JobsError> {
+    let mut params: crate::pipeline::PipelineParams = serde_json::from_value(new.params.clone())
+        .map_err(|e| JobsError::Internal(format!("validated parameters do not parse: {e}")))?;
+    params.load.max_triangles = params.load.max_triangles.min(config.max_triangles);
+    params.frames.max_tets = params.frames.max_tets.min(config.max_tets);
+    let format = new.format.as_deref().and_then(crate::io::Format::from_name).unwrap_or(crate::io::Format::Stl);
+    let sizes = crate::io::scan_input_sizes(&new.upload_path, format)
+        .map_err(io_err(format!("cannot read the upload {}", new.upload_path.display())))?;
+    Ok(crate::pipeline::peak_memory_estimate(&sizes, &params).peak)
+}
+
 fn overlay_live(rec: &mut JobRecord, job: &super::runner::RunningJob) {
+    rec.stop_requested = job.reason().is_some();
     let secs = job.stage_seconds_now();
     let live = job.live.lock().unwrap_or_else(|p| p.into_inner());
     if !live.stage.is_empty() {

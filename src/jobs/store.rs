@@ -64,7 +64,30 @@ CREATE INDEX IF NOT EXISTS jobs_by_state ON jobs(state, seq);
 ";
 
 const COLUMNS: &str = "seq, id, state, created_ms, started_ms, finished_ms, input_name, input_bytes, format, params, \
-                       stage, progress, stage_seconds, summary, error_kind, error_detail, artifacts, attempts";
+                       stage, progress, stage_seconds, summary, error_kind, error_detail, artifacts, attempts, \
+                       memory_estimate_bytes, crashes";
+
+/// Columns added after the first schema: `(name, declaration)`, added by
+/// [`migrate_columns`] to databases that lack them.
+const ADDED_COLUMNS: &[(&str, &str)] = &[
+    ("memory_estimate_bytes", "INTEGER NOT NULL DEFAULT 0"),
+    ("crashes", "INTEGER NOT NULL DEFAULT 0"),
+];
+
+/// Adds the [`ADDED_COLUMNS`] a database does not have yet (`PRAGMA
+/// table_info` first, so opening an up-to-date database changes nothing).
+fn migrate_columns(conn: &Connection) -> rusqlite::Result<()> {
+    let existing: Vec<String> = {
+        let mut stmt = conn.prepare("PRAGMA table_info(jobs)")?;
+        stmt.query_map([], |r| r.get::<_, String>(1))?.collect::<Result<_, _>>()?
+    };
+    for (name, decl) in ADDED_COLUMNS {
+        if !existing.iter().any(|c| c == name) {
+            conn.execute_batch(&format!("ALTER TABLE jobs ADD COLUMN {name} {decl}"))?;
+        }
+    }
+    Ok(())
+}
 
 /// Outcome of recovering jobs left `running` by a crash.
 #[derive(Debug, Clone, Default, PartialEq, Eq)]
@@ -73,6 +96,24 @@ pub struct Recovery {
     pub requeued: Vec<JobId>,
     /// Jobs failed because they were interrupted `max_attempts` times.
     pub failed: Vec<JobId>,
+    /// Jobs failed with kind `crashed-server`: the process died under them
+    /// twice.
+    pub crashed: Vec<JobId>,
+}
+
+/// Crashes after which a job is failed instead of being retried.
+pub const MAX_CRASHES: i64 = 2;
+
+/// The oldest queued job, as the dispatcher needs it to decide whether it
+/// may start now.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct QueueHead {
+    /// The job.
+    pub id: JobId,
+    /// Its peak-memory estimate in bytes.
+    pub memory_estimate_bytes: u64,
+    /// Times the process died while it ran.
+    pub crashes: u32,
 }
 
 /// The SQLite job store.
@@ -108,6 +149,8 @@ struct RawRow {
     error_detail: Option<String>,
     artifacts: String,
     attempts: i64,
+    memory_estimate_bytes: i64,
+    crashes: i64,
 }
 
 impl RawRow {
@@ -131,6 +174,8 @@ impl RawRow {
             error_detail: r.get(15)?,
             artifacts: r.get(16)?,
             attempts: r.get(17)?,
+            memory_estimate_bytes: r.get(18)?,
+            crashes: r.get(19)?,
         })
     }
 
@@ -160,6 +205,9 @@ impl RawRow {
             error,
             artifacts: from_json("artifacts", &self.artifacts)?,
             attempts: u32::try_from(self.attempts).unwrap_or(0),
+            memory_estimate_bytes: u64::try_from(self.memory_estimate_bytes).unwrap_or(0),
+            crashes: u32::try_from(self.crashes).unwrap_or(0),
+            stop_requested: false,
         })
     }
 }
@@ -175,6 +223,7 @@ impl Store {
         conn.pragma_update(None, "synchronous", "FULL")?;
         conn.busy_timeout(std::time::Duration::from_secs(5))?;
         conn.execute_batch(SCHEMA)?;
+        migrate_columns(&conn)?;
         Ok(Self { conn: Mutex::new(conn) })
     }
 
@@ -185,6 +234,7 @@ impl Store {
     pub fn open_in_memory() -> Result<Self, StoreError> {
         let conn = Connection::open_in_memory()?;
         conn.execute_batch(SCHEMA)?;
+        migrate_columns(&conn)?;
         Ok(Self { conn: Mutex::new(conn) })
     }
 
@@ -207,6 +257,7 @@ impl Store {
         input_bytes: u64,
         format: Option<&str>,
         params: &serde_json::Value,
+        memory_estimate_bytes: u64,
         max_queued: usize,
     ) -> Result<Option<JobRecord>, StoreError> {
         let mut conn = self.conn();
@@ -216,15 +267,16 @@ impl Store {
             return Ok(None);
         }
         tx.execute(
-            "INSERT INTO jobs (id, state, created_ms, input_name, input_bytes, format, params) \
-             VALUES (?1, 'queued', ?2, ?3, ?4, ?5, ?6)",
+            "INSERT INTO jobs (id, state, created_ms, input_name, input_bytes, format, params, memory_estimate_bytes) \
+             VALUES (?1, 'queued', ?2, ?3, ?4, ?5, ?6, ?7)",
             params![
                 id.to_string(),
                 now_ms(),
                 input_name,
                 i64::try_from(input_bytes).unwrap_or(i64::MAX),
                 format,
-                json("params", params)?
+                json("params", params)?,
+                i64::try_from(memory_estimate_bytes).unwrap_or(i64::MAX)
             ],
         )?;
         tx.commit()?;
@@ -290,6 +342,44 @@ impl Store {
             }
             None => Ok(None),
         }
+    }
+
+    /// The oldest queued job, without claiming it.
+    ///
+    /// # Errors
+    /// [`StoreError`] on database failure or an undecodable id.
+    pub fn queue_head(&self) -> Result<Option<QueueHead>, StoreError> {
+        let row: Option<(String, i64, i64)> = self
+            .conn()
+            .query_row(
+                "SELECT id, memory_estimate_bytes, crashes FROM jobs WHERE state = 'queued' ORDER BY seq LIMIT 1",
+                [],
+                |r| Ok((r.get(0)?, r.get(1)?, r.get(2)?)),
+            )
+            .optional()?;
+        row.map(|(id, bytes, crashes)| {
+            let job = id.parse::<JobId>().map_err(|e| StoreError::Corrupt { id, what: e.to_string() })?;
+            Ok(QueueHead {
+                id: job,
+                memory_estimate_bytes: u64::try_from(bytes).unwrap_or(0),
+                crashes: u32::try_from(crashes).unwrap_or(0),
+            })
+        })
+        .transpose()
+    }
+
+    /// Claims the queued job `id`: marks it running, counts the attempt.
+    /// `None` when it is no longer queued (cancelled or deleted meanwhile).
+    ///
+    /// # Errors
+    /// [`StoreError`] on database failure or an undecodable row.
+    pub fn claim(&self, id: JobId) -> Result<Option<JobRecord>, StoreError> {
+        let n = self.conn().execute(
+            "UPDATE jobs SET state = 'running', attempts = attempts + 1, started_ms = ?2, stage = NULL, \
+             progress = 0, stage_seconds = '{}' WHERE id = ?1 AND state = 'queued'",
+            params![id.to_string(), now_ms()],
+        )?;
+        if n == 1 { self.get(id) } else { Ok(None) }
     }
 
     /// Records progress of a running job.
@@ -388,8 +478,11 @@ impl Store {
         Ok(self.conn().execute("DELETE FROM jobs WHERE id = ?1", [id.to_string()])? == 1)
     }
 
-    /// After a crash: every `running` job goes back to `queued`, or is failed
-    /// with kind `interrupted` once claimed `max_attempts` times.
+    /// After a crash: every `running` job counts a crash and goes back to
+    /// `queued`; it is failed instead with kind `interrupted` once claimed
+    /// `max_attempts` times, or with kind `crashed-server` at its
+    /// [`MAX_CRASHES`]th crash (the process died under it twice: likely out
+    /// of memory).
     ///
     /// # Errors
     /// [`StoreError`] on database failure.
@@ -398,10 +491,12 @@ impl Store {
         let tx = conn.transaction()?;
         let mut rec = Recovery::default();
         {
-            let mut stmt = tx.prepare("SELECT id, attempts FROM jobs WHERE state = 'running' ORDER BY seq")?;
-            let rows = stmt.query_map([], |r| Ok((r.get::<_, String>(0)?, r.get::<_, i64>(1)?)))?;
+            let mut stmt = tx.prepare("SELECT id, attempts, crashes FROM jobs WHERE state = 'running' ORDER BY seq")?;
+            let rows = stmt.query_map([], |r| Ok((r.get::<_, String>(0)?, r.get::<_, i64>(1)?, r.get::<_, i64>(2)?)))?;
             for row in rows {
-                let (id, attempts) = row?;
+                let (id, attempts, crashes) = row?;
+                let crashes = crashes + 1;
+                tx.execute("UPDATE jobs SET crashes = ?2 WHERE id = ?1", params![id, crashes])?;
                 let job =
                     id.parse::<JobId>().map_err(|e| StoreError::Corrupt { id: id.clone(), what: e.to_string() })?;
                 if attempts >= i64::from(max_attempts) {
@@ -418,6 +513,21 @@ impl Store {
                         ],
                     )?;
                     rec.failed.push(job);
+                } else if crashes >= MAX_CRASHES {
+                    tx.execute(
+                        "UPDATE jobs SET state = 'failed', finished_ms = ?2, error_kind = 'crashed-server', \
+                         error_detail = ?3 WHERE id = ?1",
+                        params![
+                            id,
+                            now_ms(),
+                            format!(
+                                "the server process stopped while this job was running, twice ({crashes} times, \
+                                 the last time after running it alone); it likely ran out of memory, so it is not \
+                                 retried: lower its sizes (triangles, frames.max_tets or frames.target_size)"
+                            )
+                        ],
+                    )?;
+                    rec.crashed.push(job);
                 } else {
                     tx.execute(
                         "UPDATE jobs SET state = 'queued', stage = NULL, progress = 0, stage_seconds = '{}' \
@@ -476,7 +586,7 @@ mod tests {
     use super::*;
 
     fn insert(store: &Store, max: usize) -> Option<JobRecord> {
-        store.insert_queued(JobId::random(), "a.stl", 10, Some("stl"), &serde_json::json!({"stages": []}), max).unwrap()
+        store.insert_queued(JobId::random(), "a.stl", 10, Some("stl"), &serde_json::json!({"stages": []}), 0, max).unwrap()
     }
 
     #[test]
@@ -522,24 +632,50 @@ mod tests {
     }
 
     #[test]
-    fn recovery_requeues_then_fails_after_max_attempts() {
+    fn recovery_counts_crashes_and_fails_at_the_second_or_after_max_attempts() {
         let s = Store::open_in_memory().unwrap();
         let a = insert(&s, 10).unwrap();
-        for attempt in 1..=3 {
-            let c = s.claim_next().unwrap().unwrap();
-            assert_eq!((c.id, c.attempts), (a.id, attempt));
-            let rec = s.recover_interrupted(3).unwrap();
-            if attempt < 3 {
-                assert_eq!(rec.requeued, vec![a.id]);
-                assert_eq!(s.get(a.id).unwrap().unwrap().state, JobState::Queued);
-            } else {
-                assert_eq!(rec.failed, vec![a.id]);
-                let j = s.get(a.id).unwrap().unwrap();
-                assert_eq!(j.state, JobState::Failed);
-                assert_eq!(j.error.unwrap().kind, "interrupted");
-            }
+        let c = s.claim_next().unwrap().unwrap();
+        assert_eq!((c.id, c.attempts, c.crashes), (a.id, 1, 0));
+        assert_eq!(s.recover_interrupted(3).unwrap().requeued, vec![a.id]);
+        let head = s.queue_head().unwrap().unwrap();
+        assert_eq!((head.id, head.crashes), (a.id, 1));
+        let c = s.claim(a.id).unwrap().unwrap();
+        assert_eq!((c.attempts, c.crashes), (2, 1));
+        let rec = s.recover_interrupted(3).unwrap();
+        assert_eq!(rec.crashed, vec![a.id]);
+        let j = s.get(a.id).unwrap().unwrap();
+        assert_eq!((j.state, j.crashes), (JobState::Failed, 2));
+        assert_eq!(j.error.unwrap().kind, "crashed-server");
+        // --max-attempts 1: the first interruption already fails it.
+        let b = insert(&s, 10).unwrap();
+        s.claim(b.id).unwrap().unwrap();
+        assert_eq!(s.recover_interrupted(1).unwrap().failed, vec![b.id]);
+        assert_eq!(s.get(b.id).unwrap().unwrap().error.unwrap().kind, "interrupted");
+        assert_eq!(s.count_by_state().unwrap()[&JobState::Failed], 2);
+        assert!(s.claim(b.id).unwrap().is_none(), "a failed job cannot be claimed");
+    }
+
+    #[test]
+    fn a_database_from_before_the_added_columns_is_migrated() {
+        let dir = tempfile::tempdir().unwrap();
+        let path = dir.path().join("old.sqlite3");
+        {
+            let conn = Connection::open(&path).unwrap();
+            conn.execute_batch(SCHEMA).unwrap(); // the first schema: no added columns
+            conn.execute(
+                "INSERT INTO jobs (id, state, created_ms, input_name, input_bytes, params) \
+                 VALUES (?1, 'queued', 0, 'a.stl', 1, '{}')",
+                [JobId::random().to_string()],
+            )
+            .unwrap();
         }
-        assert_eq!(s.count_by_state().unwrap()[&JobState::Failed], 1);
+        let s = Store::open(&path).unwrap();
+        let head = s.queue_head().unwrap().unwrap();
+        assert_eq!((head.memory_estimate_bytes, head.crashes), (0, 0));
+        drop(s);
+        let s = Store::open(&path).unwrap();
+        assert_eq!(s.queued_count().unwrap(), 1);
     }
 
     #[test]

@@ -204,7 +204,7 @@ async fn a_restart_requeues_the_interrupted_job() {
         let cfg = config(dir.path());
         std::fs::create_dir_all(cfg.input_path(id, "x.stl").parent().unwrap()).unwrap();
         std::fs::write(cfg.input_path(id, "x.stl"), b"x").unwrap();
-        store.insert_queued(id, "x.stl", 1, None, &serde_json::json!({}), 10).unwrap();
+        store.insert_queued(id, "x.stl", 1, None, &serde_json::json!({}), 0, 10).unwrap();
         store.claim_next().unwrap();
         std::fs::create_dir_all(dir.path().join("jobs/not-a-job")).unwrap();
         id

@@ -11,12 +11,14 @@
 //! This module knows nothing of jobs, HTTP or async runtimes.
 
 pub mod error;
+pub mod memory;
 pub mod params;
 pub mod report;
 pub mod run;
 pub mod stages;
 
 pub use error::PipelineError;
+pub use memory::{MemoryEstimate, peak_memory_estimate};
 pub use params::{ParamsError, PipelineParams, StageName, parse_params};
 pub use report::{ArtifactInfo, InputInfo, PipelineReport, StepTiming};
 pub use run::{Products, REPORT_NAME, StageOutput, run_pipeline};

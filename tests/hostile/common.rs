@@ -251,3 +251,45 @@ pub fn raw_body(answer: &[u8]) -> Vec<u8> {
         None => Vec::new(),
     }
 }
+
+impl Server {
+    /// Like [`Server::start`], but the binary runs under `wrapper` (e.g.
+    /// `["prlimit", "--as=3000000000", "--"]`, which execs it in place, so
+    /// [`Server::pid`] is still the server's).
+    pub fn start_wrapped(wrapper: &[&str], extra: &[&str]) -> Server {
+        let tmp = tempfile::tempdir().unwrap();
+        let dir = tmp.path().join("data");
+        std::fs::create_dir_all(&dir).unwrap();
+        let log_path = dir.with_extension("log");
+        let log = std::fs::File::create(&log_path).unwrap();
+        let (program, pre) = wrapper.split_first().expect("a wrapper command");
+        let mut child = Command::new(program)
+            .args(pre)
+            .arg(env!("CARGO_BIN_EXE_meshatlas"))
+            .args(["serve", "--addr", "127.0.0.1:0"])
+            .arg("--data-dir")
+            .arg(&dir)
+            .args(extra)
+            .env("MESHATLAS_LOG", "info")
+            .stdout(Stdio::piped())
+            .stderr(log)
+            .spawn()
+            .expect("start the wrapped meshatlas serve");
+        let stdout = child.stdout.take().unwrap();
+        let mut line = String::new();
+        let _ = BufReader::new(stdout).read_line(&mut line);
+        let Some(addr) = line.trim().strip_prefix("listening on ").map(str::to_string) else {
+            let code = child.wait().ok().and_then(|s| s.code());
+            panic!("wrapped server exited with {code:?}; log:\n{}", std::fs::read_to_string(&log_path).unwrap_or_default());
+        };
+        Server {
+            child,
+            base: format!("http://{addr}"),
+            addr,
+            data_dir: dir,
+            _tmp: Some(tmp),
+            client: reqwest::Client::new(),
+            log_path,
+        }
+    }
+}
