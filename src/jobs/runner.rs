@@ -44,6 +44,10 @@ pub struct JobsConfig {
     pub max_triangles: usize,
     /// Least time between two progress writes to the store. Default 250 ms.
     pub progress_interval: Duration,
+    /// Stored-bytes and per-tenant limits at submission. Default: none.
+    pub quotas: super::quota::Quotas,
+    /// Expiry of finished jobs. Default: kept forever.
+    pub retention: super::retention::Retention,
 }
 
 impl JobsConfig {
@@ -57,6 +61,8 @@ impl JobsConfig {
             max_attempts: 3,
             max_triangles: 5_000_000,
             progress_interval: Duration::from_millis(250),
+            quotas: Default::default(),
+            retention: Default::default(),
         }
     }
 

@@ -20,6 +20,7 @@ async fn submit(svc: &JobService) -> Result<JobRecord, JobsError> {
         input_bytes: 19,
         format: Some("stl".into()),
         params: serde_json::json!({}),
+        tenant: None,
     })
     .await
 }
@@ -144,7 +145,7 @@ async fn delete_removes_a_running_job_and_its_files() {
     wait_for(&svc, b.id, |r| r.state == JobState::Running).await;
     svc.delete(b.id).await.unwrap();
     assert!(matches!(svc.delete(b.id).await, Err(JobsError::NotFound(_))));
-    assert!(svc.list(10, None).await.unwrap().jobs.is_empty());
+    assert!(svc.list(10, None, None).await.unwrap().jobs.is_empty());
 }
 
 #[tokio::test]
@@ -204,7 +205,7 @@ async fn a_restart_requeues_the_interrupted_job() {
         let cfg = config(dir.path());
         std::fs::create_dir_all(cfg.input_path(id, "x.stl").parent().unwrap()).unwrap();
         std::fs::write(cfg.input_path(id, "x.stl"), b"x").unwrap();
-        store.insert_queued(id, "x.stl", 1, None, &serde_json::json!({}), 10).unwrap();
+        store.insert_queued(id, "x.stl", 1, None, &serde_json::json!({}), 10, None).unwrap();
         store.claim_next().unwrap();
         std::fs::create_dir_all(dir.path().join("jobs/not-a-job")).unwrap();
         id
