@@ -181,15 +181,16 @@ fn serve(args: ServeArgs) -> Result<(), String> {
         .map_err(|e| format!("cannot start the async runtime: {e}"))?;
     rt.block_on(async move {
         let jobs = JobService::start(config, executor).map_err(|e| e.to_string())?;
+        // Before `listening on` is printed, so a SIGHUP right after start reloads instead of killing.
+        if let Some(a) = &auth {
+            meshatlas::http::auth::reload_on_sighup(a.clone()).map_err(|e| format!("cannot handle SIGHUP: {e}"))?;
+        }
         let listener = tokio::net::TcpListener::bind(&args.addr)
             .await
             .map_err(|e| format!("cannot listen on {}: {e}", args.addr))?;
         let addr = listener.local_addr().map_err(|e| e.to_string())?;
         println!("listening on {addr}");
         tracing::info!(%addr, "listening");
-        if let Some(a) = &auth {
-            meshatlas::http::auth::reload_on_sighup(a.clone()).map_err(|e| format!("cannot handle SIGHUP: {e}"))?;
-        }
         let state = AppState { jobs: jobs.clone(), limits: Arc::new(limits), auth };
         meshatlas::http::serve(listener, state, shutdown_signal()).await.map_err(|e| e.to_string())?;
         jobs.shutdown(Duration::from_secs(10)).await;
