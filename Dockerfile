@@ -20,6 +20,7 @@ RUN groupadd --system --gid 10001 meshatlas \
 COPY --from=build /usr/local/bin/meshatlas /usr/local/bin/meshatlas
 COPY api/openapi.yaml /usr/share/meshatlas/openapi.yaml
 USER meshatlas:meshatlas
+# 0.0.0.0 needs MESHATLAS_AUTH_TOKENS (a token file's path) or MESHATLAS_INSECURE_NO_AUTH=true.
 ENV MESHATLAS_ADDR=0.0.0.0:8080 \
     MESHATLAS_DATA_DIR=/var/lib/meshatlas \
     MESHATLAS_LOG=info

@@ -10,8 +10,12 @@ use std::time::Duration;
 
 use clap::{Args, Parser, Subcommand};
 
+use meshatlas::http::auth::Auth;
 use meshatlas::http::{AppState, HttpLimits};
-use meshatlas::jobs::{Delayed, Executor, JobService, JobsConfig, Stalled, pipeline_executor::PipelineExecutor};
+use meshatlas::jobs::{
+    Delayed, Executor, JobService, JobsConfig, Quotas, Retention, Stalled, parse_retention,
+    pipeline_executor::PipelineExecutor,
+};
 use meshatlas::pipeline::{PipelineParams, StageName, parse_params, run_pipeline};
 use meshatlas::progress::{Progress, ProgressSink};
 
@@ -77,6 +81,32 @@ struct ServeArgs {
     /// so tests see a stop that is pending.
     #[arg(long, env = "MESHATLAS_TEST_STALL_MS", hide = true)]
     test_stall_ms: Option<u64>,
+    /// File of `token tenant` lines: every route but /healthz then needs
+    /// `Authorization: Bearer TOKEN`, and jobs belong to the token's tenant.
+    /// Reloaded on SIGHUP.
+    #[arg(long, env = "MESHATLAS_AUTH_TOKENS")]
+    auth_tokens: Option<PathBuf>,
+    /// /metrics needs a token too (with --auth-tokens).
+    #[arg(long, env = "MESHATLAS_METRICS_AUTH", value_parser = clap::builder::BoolishValueParser::new())]
+    metrics_auth: bool,
+    /// Serve a non-loopback --addr without --auth-tokens.
+    #[arg(long, env = "MESHATLAS_INSECURE_NO_AUTH", value_parser = clap::builder::BoolishValueParser::new())]
+    insecure_no_auth: bool,
+    /// Most queued jobs per tenant (429 beyond; with --auth-tokens).
+    #[arg(long, env = "MESHATLAS_TENANT_MAX_QUEUED")]
+    tenant_max_queued: Option<usize>,
+    /// Most bytes of uploads and artifacts per tenant (507 beyond; with --auth-tokens).
+    #[arg(long, env = "MESHATLAS_TENANT_MAX_STORED_BYTES")]
+    tenant_max_stored_bytes: Option<u64>,
+    /// Most bytes of uploads and artifacts stored in all (507 beyond).
+    #[arg(long, env = "MESHATLAS_MAX_STORED_BYTES")]
+    max_stored_bytes: Option<u64>,
+    /// Delete finished jobs this long after they end (`7d`, `12h`, `30m`, `45s`, or seconds).
+    #[arg(long, env = "MESHATLAS_RETENTION", value_parser = parse_retention)]
+    retention: Option<Duration>,
+    /// Testing only: milliseconds between two retention sweeps (default 60 s).
+    #[arg(long, env = "MESHATLAS_TEST_RETENTION_SWEEP_MS", hide = true)]
+    test_retention_sweep_ms: Option<u64>,
 }
 
 #[derive(Args)]
@@ -148,9 +178,15 @@ fn serve(args: ServeArgs) -> Result<(), String> {
         max_triangles: args.max_triangles,
         max_tets: usize::try_from(args.max_tets).unwrap_or(usize::MAX),
         memory_budget: args.memory_budget.unwrap_or_else(meshatlas::jobs::memory::default_memory_budget),
+        quotas: quotas(&args)?,
+        retention: Retention {
+            max_age: args.retention,
+            sweep_interval: Duration::from_millis(args.test_retention_sweep_ms.unwrap_or(60_000).max(1)),
+        },
         ..JobsConfig::new(&args.data_dir)
     };
     tracing::info!(memory_budget = config.memory_budget, max_tets = config.max_tets, "memory admission");
+    let auth = auth_setup(&args)?;
     let executor: Arc<dyn Executor> = match args.test_job_delay_ms {
         Some(ms) => Arc::new(Delayed { inner: PipelineExecutor, delay: Duration::from_millis(ms) }),
         None => Arc::new(PipelineExecutor),
@@ -169,17 +205,70 @@ fn serve(args: ServeArgs) -> Result<(), String> {
         .map_err(|e| format!("cannot start the async runtime: {e}"))?;
     rt.block_on(async move {
         let jobs = JobService::start(config, executor).map_err(|e| e.to_string())?;
+        // Before `listening on` is printed, so a SIGHUP right after start reloads instead of killing.
+        if let Some(a) = &auth {
+            meshatlas::http::auth::reload_on_sighup(a.clone()).map_err(|e| format!("cannot handle SIGHUP: {e}"))?;
+        }
         let listener = tokio::net::TcpListener::bind(&args.addr)
             .await
             .map_err(|e| format!("cannot listen on {}: {e}", args.addr))?;
         let addr = listener.local_addr().map_err(|e| e.to_string())?;
         println!("listening on {addr}");
         tracing::info!(%addr, "listening");
-        let state = AppState { jobs: jobs.clone(), limits: Arc::new(limits) };
+        let state = AppState { jobs: jobs.clone(), limits: Arc::new(limits), auth };
         meshatlas::http::serve(listener, state, shutdown_signal()).await.map_err(|e| e.to_string())?;
         jobs.shutdown(Duration::from_secs(10)).await;
         Ok(())
     })
+}
+
+/// The stored-bytes and per-tenant limits of the flags (per-tenant ones
+/// need --auth-tokens; zero limits are refused).
+fn quotas(args: &ServeArgs) -> Result<Quotas, String> {
+    let per_tenant = args.tenant_max_queued.is_some() || args.tenant_max_stored_bytes.is_some();
+    if per_tenant && args.auth_tokens.is_none() {
+        return Err("--tenant-max-queued and --tenant-max-stored-bytes need --auth-tokens (tenants)".into());
+    }
+    if args.tenant_max_queued == Some(0) || args.tenant_max_stored_bytes == Some(0) || args.max_stored_bytes == Some(0)
+    {
+        return Err("--tenant-max-queued, --tenant-max-stored-bytes and --max-stored-bytes must be positive".into());
+    }
+    Ok(Quotas {
+        max_stored_bytes: args.max_stored_bytes,
+        tenant_max_queued: args.tenant_max_queued,
+        tenant_max_stored_bytes: args.tenant_max_stored_bytes,
+    })
+}
+
+/// Loads the token file, and refuses a non-loopback --addr without one
+/// unless --insecure-no-auth.
+fn auth_setup(args: &ServeArgs) -> Result<Option<Arc<Auth>>, String> {
+    let Some(path) = &args.auth_tokens else {
+        if args.metrics_auth {
+            return Err("--metrics-auth needs --auth-tokens".into());
+        }
+        if !args.insecure_no_auth {
+            refuse_non_loopback(&args.addr)?;
+        }
+        return Ok(None);
+    };
+    let auth = Auth::load(path, args.metrics_auth).map_err(|e| e.to_string())?;
+    Ok(Some(Arc::new(auth)))
+}
+
+/// Errs when `addr` resolves to any address outside loopback.
+fn refuse_non_loopback(addr: &str) -> Result<(), String> {
+    use std::net::ToSocketAddrs;
+    // An address that does not resolve is reported by the bind.
+    let Ok(resolved) = addr.to_socket_addrs() else { return Ok(()) };
+    match resolved.into_iter().find(|a| !a.ip().is_loopback()) {
+        Some(a) => Err(format!(
+            "refusing to listen on {addr} ({}, not a loopback address) without authentication: \
+             give --auth-tokens FILE, or --insecure-no-auth to serve every client without it",
+            a.ip()
+        )),
+        None => Ok(()),
+    }
 }
 
 /// Resolves on Ctrl-C or SIGTERM.

@@ -63,7 +63,7 @@ struct Config {
 
 impl Config {
     fn random(rng: &mut StdRng) -> Self {
-        let mut arrays = |rng: &mut StdRng| -> Vec<Kind> {
+        let arrays = |rng: &mut StdRng| -> Vec<Kind> {
             (0..rng.random_range(0..4)).map(|_| Kind::ALL[rng.random_range(0..Kind::ALL.len())]).collect()
         };
         Config {

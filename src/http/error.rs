@@ -53,6 +53,8 @@ struct Problem {
     retry_after: Option<u64>,
     /// Cause logged (not shown) for server errors.
     cause: Option<String>,
+    /// A 5xx whose detail and members are meant for the client (a quota).
+    expose: bool,
 }
 
 /// Every stable failure kind with its status and title. Kinds from the mesh
@@ -67,6 +69,7 @@ const KINDS: &[(&str, StatusCode, &str)] = &[
     ("missing-file", StatusCode::BAD_REQUEST, "No file in the upload"),
     ("upload-interrupted", StatusCode::BAD_REQUEST, "The upload was interrupted"),
     ("empty-file", StatusCode::BAD_REQUEST, "The uploaded file is empty"),
+    ("unauthorized", StatusCode::UNAUTHORIZED, "Authentication required"),
     ("not-found", StatusCode::NOT_FOUND, "No such resource"),
     ("job-not-found", StatusCode::NOT_FOUND, "No such job"),
     ("artifact-not-found", StatusCode::NOT_FOUND, "No such artifact"),
@@ -78,6 +81,8 @@ const KINDS: &[(&str, StatusCode, &str)] = &[
     ("invalid-params", StatusCode::UNPROCESSABLE_ENTITY, "Invalid pipeline parameters"),
     ("memory-budget-exceeded", StatusCode::UNPROCESSABLE_ENTITY, "Job exceeds the server's memory budget"),
     ("queue-full", StatusCode::TOO_MANY_REQUESTS, "Job queue full"),
+    ("tenant-queue-full", StatusCode::TOO_MANY_REQUESTS, "Too many queued jobs for this tenant"),
+    ("insufficient-storage", StatusCode::INSUFFICIENT_STORAGE, "Insufficient storage"),
     ("service-unavailable", StatusCode::SERVICE_UNAVAILABLE, "Service unavailable"),
     // Job failures caused by the input (reader errors and limits).
     ("truncated", StatusCode::UNPROCESSABLE_ENTITY, "Truncated mesh file"),
@@ -121,6 +126,7 @@ impl ApiError {
             extra: Map::new(),
             retry_after: None,
             cause: None,
+            expose: false,
         }))
     }
 
@@ -141,6 +147,18 @@ impl ApiError {
     pub fn retry_after(mut self, secs: u64) -> Self {
         self.0.retry_after = Some(secs);
         self
+    }
+
+    /// Shows the detail and members even though the status is 5xx (a
+    /// refusal the client can act on, such as a full storage quota).
+    pub fn exposed(mut self) -> Self {
+        self.0.expose = true;
+        self
+    }
+
+    /// True when the body must be generic and the cause logged as an error.
+    fn is_hidden(&self) -> bool {
+        self.0.status.is_server_error() && !self.0.expose
     }
 
     /// The HTTP status of this error.
@@ -192,7 +210,7 @@ impl ApiError {
 
     /// The problem body (with the current request id).
     fn body(&self, request_id: &str) -> Value {
-        let detail = if self.0.status.is_server_error() {
+        let detail = if self.is_hidden() {
             format!("the server could not complete the request; quote request id {request_id} when reporting it")
         } else {
             self.0.detail.clone()
@@ -203,7 +221,7 @@ impl ApiError {
         obj.insert("status".into(), Value::from(self.0.status.as_u16()));
         obj.insert("detail".into(), Value::String(detail));
         obj.insert("request_id".into(), Value::String(request_id.into()));
-        if !self.0.status.is_server_error() {
+        if !self.is_hidden() {
             for (k, v) in &self.0.extra {
                 obj.insert(k.clone(), v.clone());
             }
@@ -212,7 +230,7 @@ impl ApiError {
     }
 
     fn into_response_with_id(self, request_id: &str) -> Response {
-        if self.0.status.is_server_error() {
+        if self.is_hidden() {
             tracing::error!(
                 request_id,
                 kind = self.0.kind,
@@ -256,6 +274,22 @@ impl From<JobsError> for ApiError {
                     .with("estimated_bytes", estimated_bytes)
                     .with("budget_bytes", budget_bytes)
             }
+            JobsError::TenantQueueFull { max_queued } => Self::new(
+                "tenant-queue-full",
+                format!("you already have {max_queued} queued jobs; retry after the Retry-After delay"),
+            )
+            .with("max_queued", max_queued),
+            JobsError::QuotaExceeded { tenant, max_bytes } => Self::new(
+                "insufficient-storage",
+                format!(
+                    "storing this upload would exceed the {} storage quota of {max_bytes} bytes; \
+                     delete finished jobs to make room",
+                    if tenant { "tenant's" } else { "server's" }
+                ),
+            )
+            .with("max_stored_bytes", max_bytes)
+            .with("quota", if tenant { "tenant" } else { "server" })
+            .exposed(),
             other => Self::internal(other),
         }
     }

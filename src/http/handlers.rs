@@ -11,9 +11,10 @@ use serde_json::{Value, json};
 use tower::ServiceExt;
 
 use super::AppState;
+use super::auth::Scope;
 use super::error::ApiError;
 use super::upload::{self, SubmitQuery};
-use crate::jobs::{JobId, JobRecord, NewJob, model::rfc3339};
+use crate::jobs::{JobId, JobRecord, JobsError, NewJob, model::rfc3339};
 use crate::pipeline::parse_params;
 
 /// URL path of a job.
@@ -59,6 +60,27 @@ pub fn job_json(rec: &JobRecord) -> Value {
 
 fn parse_id(id: &str) -> Result<JobId, ApiError> {
     id.parse::<JobId>().map_err(|e| ApiError::new("job-not-found", e.to_string()))
+}
+
+/// The job id of the path if the caller may see that job; another tenant's
+/// job answers 404 exactly like a missing one.
+async fn visible_id(st: &AppState, scope: &Scope, id: &str) -> Result<JobId, ApiError> {
+    let id = parse_id(id)?;
+    st.jobs.check_visible(id, scope.tenant()).await?;
+    Ok(id)
+}
+
+/// Bytes a multipart body may carry besides the file (part headers, the
+/// `params` part, boundaries), so the early quota check on the declared
+/// Content-Length never refuses what the check on the real size accepts.
+const MULTIPART_ALLOWANCE: u64 = 128 * 1024;
+
+/// A submission refused by a per-tenant or stored-bytes limit (429 with
+/// Retry-After, or 507).
+fn refused(st: &AppState, e: JobsError) -> ApiError {
+    let retry = matches!(e, JobsError::TenantQueueFull { .. });
+    let err = ApiError::from(e);
+    if retry { err.retry_after(st.limits.retry_after_secs) } else { err }
 }
 
 fn bad_query(e: QueryRejection) -> ApiError {
@@ -110,6 +132,7 @@ fn params_json(q: &SubmitQuery, part: Option<&[u8]>) -> Result<Value, ApiError> 
 /// `POST /v1/jobs`: stream the upload to disk, validate, queue the job.
 pub async fn submit_job(
     State(st): State<AppState>,
+    scope: Scope,
     query: Result<Query<SubmitQuery>, QueryRejection>,
     req: Request,
 ) -> Result<Response, ApiError> {
@@ -126,6 +149,9 @@ pub async fn submit_job(
             return Err(queue_full(&st));
         }
         let is_multipart = upload::media_type(&headers).is_some_and(|m| m == "multipart/form-data");
+        let allowance = if is_multipart { MULTIPART_ALLOWANCE } else { 0 };
+        let declared = upload::content_length(&headers).unwrap_or(0).saturating_sub(allowance);
+        st.jobs.check_admission(scope.tenant(), declared).await.map_err(|e| refused(&st, e))?;
         // Parameters of a raw upload are all in the query: reject bad ones before reading the body.
         let early_params = if is_multipart { None } else { Some(params_json(&q, None)?) };
         Ok((q, limit, is_multipart, early_params))
@@ -169,6 +195,7 @@ pub async fn submit_job(
         input_bytes: up.bytes,
         format: Some(format.extension().to_string()),
         params,
+        tenant: scope.tenant(),
     };
     let rec = match st.jobs.submit(new).await {
         Ok(rec) => {
@@ -176,6 +203,7 @@ pub async fn submit_job(
             rec
         }
         Err(crate::jobs::JobsError::QueueFull { .. }) => return Err(queue_full(&st)),
+        Err(e @ (JobsError::TenantQueueFull { .. } | JobsError::QuotaExceeded { .. })) => return Err(refused(&st, e)),
         Err(e) => return Err(e.into()),
     };
     let mut resp = (StatusCode::ACCEPTED, Json(job_json(&rec))).into_response();
@@ -193,8 +221,12 @@ fn queue_full(st: &AppState) -> ApiError {
 }
 
 /// `GET /v1/jobs/{id}`.
-pub async fn get_job(State(st): State<AppState>, Path(id): Path<String>) -> Result<Json<Value>, ApiError> {
-    let rec = st.jobs.get(parse_id(&id)?).await?;
+pub async fn get_job(
+    State(st): State<AppState>,
+    scope: Scope,
+    Path(id): Path<String>,
+) -> Result<Json<Value>, ApiError> {
+    let rec = st.jobs.get(visible_id(&st, &scope, &id).await?).await?;
     Ok(Json(job_json(&rec)))
 }
 
@@ -211,6 +243,7 @@ pub struct ListQuery {
 /// `GET /v1/jobs`: newest first, cursor pagination.
 pub async fn list_jobs(
     State(st): State<AppState>,
+    scope: Scope,
     query: Result<Query<ListQuery>, QueryRejection>,
 ) -> Result<Json<Value>, ApiError> {
     let Query(q) = query.map_err(bad_query)?;
@@ -225,7 +258,7 @@ pub async fn list_jobs(
                 .with("field", "cursor")
         })?),
     };
-    let page = st.jobs.list(limit, cursor).await?;
+    let page = st.jobs.list(limit, cursor, scope.tenant()).await?;
     Ok(Json(json!({
         "jobs": page.jobs.iter().map(job_json).collect::<Vec<_>>(),
         "next_cursor": page.next_cursor.map(|c| c.to_string()),
@@ -235,8 +268,12 @@ pub async fn list_jobs(
 /// `POST /v1/jobs/{id}/cancel`: stop a queued or running job, keep its
 /// record. 200 once it stopped; 202 with `stop_requested` while the stop is
 /// pending.
-pub async fn cancel_job(State(st): State<AppState>, Path(id): Path<String>) -> Result<Response, ApiError> {
-    let rec = st.jobs.cancel(parse_id(&id)?).await?;
+pub async fn cancel_job(
+    State(st): State<AppState>,
+    scope: Scope,
+    Path(id): Path<String>,
+) -> Result<Response, ApiError> {
+    let rec = st.jobs.cancel(visible_id(&st, &scope, &id).await?).await?;
     let status = if rec.stop_requested { StatusCode::ACCEPTED } else { StatusCode::OK };
     Ok((status, Json(job_json(&rec))).into_response())
 }
@@ -244,8 +281,12 @@ pub async fn cancel_job(State(st): State<AppState>, Path(id): Path<String>) -> R
 /// `DELETE /v1/jobs/{id}`: cancel if running, then remove record and files.
 /// 204 once gone; 202 with the job (`stop_requested`) while the running job
 /// has not stopped yet (its files go when it does).
-pub async fn delete_job(State(st): State<AppState>, Path(id): Path<String>) -> Result<Response, ApiError> {
-    match st.jobs.delete(parse_id(&id)?).await? {
+pub async fn delete_job(
+    State(st): State<AppState>,
+    scope: Scope,
+    Path(id): Path<String>,
+) -> Result<Response, ApiError> {
+    match st.jobs.delete(visible_id(&st, &scope, &id).await?).await? {
         None => Ok(StatusCode::NO_CONTENT.into_response()),
         Some(rec) => Ok((StatusCode::ACCEPTED, Json(job_json(&rec))).into_response()),
     }
@@ -254,10 +295,11 @@ pub async fn delete_job(State(st): State<AppState>, Path(id): Path<String>) -> R
 /// `GET /v1/jobs/{id}/artifacts/{name}`: the file, with Range support.
 pub async fn get_artifact(
     State(st): State<AppState>,
+    scope: Scope,
     Path((id, name)): Path<(String, String)>,
     req: Request,
 ) -> Result<Response, ApiError> {
-    let (path, art) = st.jobs.artifact(parse_id(&id)?, name).await?;
+    let (path, art) = st.jobs.artifact(visible_id(&st, &scope, &id).await?, name).await?;
     let served = tower_http::services::ServeFile::new(&path).oneshot(req).await.map_err(ApiError::internal)?;
     if served.status() == StatusCode::NOT_FOUND {
         return Err(ApiError::internal(format!("artifact file {} is missing", path.display())));

@@ -10,6 +10,7 @@
 //! to disk and [`HttpLimits::max_upload_bytes`] is enforced while streaming.
 //! This is the only module that knows axum.
 
+pub mod auth;
 pub mod error;
 pub mod handlers;
 pub mod upload;
@@ -48,6 +49,8 @@ pub struct AppState {
     pub jobs: JobService,
     /// Request limits.
     pub limits: Arc<HttpLimits>,
+    /// Bearer-token authentication; `None` serves without it.
+    pub auth: Option<Arc<auth::Auth>>,
 }
 
 /// One served route: method, path (axum/OpenAPI `{param}` syntax), handler.
@@ -82,6 +85,7 @@ pub fn router(state: AppState) -> Router {
         app = app.route(route.path, route.handler);
     }
     app.fallback(handlers::not_found)
+        .layer(axum::middleware::from_fn_with_state(state.clone(), auth::authenticate))
         .layer(tower_http::catch_panic::CatchPanicLayer::new())
         .layer(axum::middleware::from_fn(error::request_context))
         .with_state(state)

@@ -8,6 +8,8 @@
 //!   [`pipeline_executor::PipelineExecutor`], tests inject fakes.
 //! - [`metrics`]: Prometheus text.
 //! - [`memory`]: the memory budget (`--memory-budget` sizes, default).
+//! - [`quota`]: stored-bytes and per-tenant admission limits.
+//! - [`retention`]: expiry of finished jobs.
 //!
 //! This is the only module that touches both rayon and tokio: numerical work
 //! runs on the rayon pool, store and file operations on tokio's blocking
@@ -18,12 +20,16 @@ pub mod memory;
 pub mod metrics;
 pub mod model;
 pub mod pipeline_executor;
+pub mod quota;
+pub mod retention;
 pub mod runner;
 pub mod service;
 pub mod store;
 
 pub use executor::{Delayed, ExecError, Executor, JobInput, JobOutcome, Stalled};
 pub use model::{Artifact, JobError, JobId, JobPage, JobRecord, JobState, NewJob};
+pub use quota::Quotas;
+pub use retention::{Retention, parse_retention};
 pub use runner::JobsConfig;
 pub use service::{JobService, JobsError};
 pub use store::{Store, StoreError};

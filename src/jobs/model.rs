@@ -183,6 +183,8 @@ pub struct NewJob {
     pub format: Option<String>,
     /// Validated pipeline parameters as JSON.
     pub params: serde_json::Value,
+    /// The submitting tenant (`None` without authentication).
+    pub tenant: Option<String>,
 }
 
 /// One page of jobs, newest first.

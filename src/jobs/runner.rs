@@ -60,6 +60,10 @@ pub struct JobsConfig {
     pub memory_budget: u64,
     /// Least time between two progress writes to the store. Default 250 ms.
     pub progress_interval: Duration,
+    /// Stored-bytes and per-tenant limits at submission. Default: none.
+    pub quotas: super::quota::Quotas,
+    /// Expiry of finished jobs. Default: kept forever.
+    pub retention: super::retention::Retention,
 }
 
 impl JobsConfig {
@@ -75,6 +79,8 @@ impl JobsConfig {
             max_tets: 2_000_000,
             memory_budget: u64::MAX,
             progress_interval: Duration::from_millis(250),
+            quotas: Default::default(),
+            retention: Default::default(),
         }
     }
 

@@ -51,6 +51,20 @@ pub enum JobsError {
         /// The budget (`--memory-budget`).
         budget_bytes: u64,
     },
+    /// The tenant already has its maximum of queued jobs.
+    #[error("this tenant already has {max_queued} queued jobs; retry later")]
+    TenantQueueFull {
+        /// The per-tenant queue length.
+        max_queued: usize,
+    },
+    /// Storing the upload would exceed a stored-bytes quota.
+    #[error("the {} storage quota of {max_bytes} bytes would be exceeded", if *tenant { "tenant's" } else { "server's" })]
+    QuotaExceeded {
+        /// The tenant's quota (true) or the server-wide one (false).
+        tenant: bool,
+        /// The quota in bytes.
+        max_bytes: u64,
+    },
     /// No job with this id.
     #[error("job {0} does not exist")]
     NotFound(JobId),
@@ -76,6 +90,9 @@ fn io_err(what: impl Into<String>) -> impl FnOnce(std::io::Error) -> JobsError {
 #[derive(Clone)]
 pub struct JobService {
     inner: Arc<Inner>,
+    /// Held from the quota check to the insert of a submission, so two
+    /// concurrent uploads cannot both take the last free quota.
+    admission: Arc<Mutex<()>>,
 }
 
 impl JobService {
@@ -125,8 +142,15 @@ impl JobService {
             .name("meshatlas-dispatcher".into())
             .spawn(move || dispatch_loop(d))
             .map_err(|e| JobsError::Internal(format!("cannot start the dispatcher: {e}")))?;
+        if let Some(max_age) = inner.config.retention.max_age {
+            let r = inner.clone();
+            std::thread::Builder::new()
+                .name("meshatlas-retention".into())
+                .spawn(move || super::retention::retention_loop(r, max_age))
+                .map_err(|e| JobsError::Internal(format!("cannot start the retention sweep: {e}")))?;
+        }
         info!(data_dir = %inner.config.data_dir.display(), workers, "job service started");
-        Ok(Self { inner })
+        Ok(Self { inner, admission: Arc::new(Mutex::new(())) })
     }
 
     /// The configuration in force.
@@ -158,13 +182,49 @@ impl JobService {
         self.blocking(|i| Ok(i.store.queued_count()? < i.config.max_queued)).await
     }
 
+    /// Checks the stored-bytes and per-tenant limits for an upload of
+    /// `incoming` bytes by `tenant` (before it is read;
+    /// [`JobService::submit`] checks again with the real size).
+    ///
+    /// # Errors
+    /// [`JobsError::TenantQueueFull`], [`JobsError::QuotaExceeded`], or
+    /// [`JobsError::Store`] on database failure.
+    pub async fn check_admission(&self, tenant: Option<String>, incoming: u64) -> Result<(), JobsError> {
+        self.blocking(move |i| super::quota::check_admission(&i.store, &i.config.quotas, tenant.as_deref(), incoming))
+            .await
+    }
+
+    /// Succeeds when `tenant` (`None`: authentication off) may see job `id`;
+    /// a job of another tenant is [`JobsError::NotFound`], like a missing one.
+    ///
+    /// # Errors
+    /// [`JobsError::NotFound`], or [`JobsError::Store`] on database failure.
+    pub async fn check_visible(&self, id: JobId, tenant: Option<String>) -> Result<(), JobsError> {
+        let Some(tenant) = tenant else { return Ok(()) };
+        self.blocking(move |inner| match inner.store.owner(id)? {
+            Some(Some(owner)) if owner == tenant => Ok(()),
+            _ => Err(JobsError::NotFound(id)),
+        })
+        .await
+    }
+
     /// Moves the upload into a new job directory and queues the job.
     ///
     /// # Errors
-    /// [`JobsError::QueueFull`] when the queue is full (the upload is
-    /// removed), [`JobsError::Io`]/[`JobsError::Store`] on storage failure.
+    /// [`JobsError::QueueFull`] when the queue is full,
+    /// [`JobsError::TenantQueueFull`]/[`JobsError::QuotaExceeded`] over a
+    /// limit (the upload is removed), [`JobsError::Io`]/[`JobsError::Store`]
+    /// on storage failure.
     pub async fn submit(&self, new: NewJob) -> Result<JobRecord, JobsError> {
+        let admission = self.admission.clone();
         self.blocking(move |inner| {
+            let _admitted = admission.lock().unwrap_or_else(|p| p.into_inner());
+            let quotas = &inner.config.quotas;
+            if let Err(e) = super::quota::check_admission(&inner.store, quotas, new.tenant.as_deref(), new.input_bytes)
+            {
+                let _ = std::fs::remove_file(&new.upload_path);
+                return Err(e);
+            }
             let id = JobId::random();
             let dir = inner.config.job_dir(id);
             let input_name = super::model::sanitize_file_name(&new.input_name);
@@ -202,6 +262,7 @@ impl JobService {
                 &new.params,
                 estimate,
                 inner.config.max_queued,
+                new.tenant.as_deref(),
             );
             match rec {
                 Ok(Some(rec)) => {
@@ -230,13 +291,14 @@ impl JobService {
         self.blocking(move |inner| get_live(inner, id)).await
     }
 
-    /// Up to `limit` jobs older than `cursor`, newest first.
+    /// Up to `limit` jobs older than `cursor`, newest first; only
+    /// `tenant`'s jobs when a tenant is given.
     ///
     /// # Errors
     /// [`JobsError::Store`] on database failure.
-    pub async fn list(&self, limit: usize, cursor: Option<i64>) -> Result<JobPage, JobsError> {
+    pub async fn list(&self, limit: usize, cursor: Option<i64>, tenant: Option<String>) -> Result<JobPage, JobsError> {
         self.blocking(move |inner| {
-            let mut page = inner.store.list(limit, cursor)?;
+            let mut page = inner.store.list(limit, cursor, tenant.as_deref())?;
             let running = inner.running();
             for rec in &mut page.jobs {
                 if let Some(job) = running.get(&rec.id) {

@@ -63,31 +63,38 @@ CREATE TABLE IF NOT EXISTS jobs (
 CREATE INDEX IF NOT EXISTS jobs_by_state ON jobs(state, seq);
 ";
 
+/// Columns added after the first schema, with their declarations; a
+/// database that lacks one (per `PRAGMA table_info`) gets it on open.
+/// `tenant`: the submitting tenant, NULL for jobs made without authentication.
+/// Indexes over added columns (created after the columns exist).
+const ADDED_INDEXES: &str = "CREATE INDEX IF NOT EXISTS jobs_by_tenant ON jobs(tenant, seq);";
+
+/// Adds the [`ADDED_COLUMNS`] an existing database lacks, and their indexes.
+fn add_missing_columns(conn: &Connection) -> Result<(), StoreError> {
+    let present: Vec<String> = {
+        let mut stmt = conn.prepare("PRAGMA table_info(jobs)")?;
+        stmt.query_map([], |r| r.get::<_, String>(1))?.collect::<Result<_, _>>()?
+    };
+    for (name, decl) in ADDED_COLUMNS {
+        if !present.iter().any(|p| p == name) {
+            conn.execute_batch(&format!("ALTER TABLE jobs ADD COLUMN {name} {decl}"))?;
+        }
+    }
+    conn.execute_batch(ADDED_INDEXES)?;
+    Ok(())
+}
+
 const COLUMNS: &str = "seq, id, state, created_ms, started_ms, finished_ms, input_name, input_bytes, format, params, \
                        stage, progress, stage_seconds, summary, error_kind, error_detail, artifacts, attempts, \
                        memory_estimate_bytes, crashes";
 
 /// Columns added after the first schema: `(name, declaration)`, added by
-/// [`migrate_columns`] to databases that lack them.
+/// [`add_missing_columns`] to databases that lack them.
 const ADDED_COLUMNS: &[(&str, &str)] = &[
     ("memory_estimate_bytes", "INTEGER NOT NULL DEFAULT 0"),
     ("crashes", "INTEGER NOT NULL DEFAULT 0"),
+    ("tenant", "TEXT"),
 ];
-
-/// Adds the [`ADDED_COLUMNS`] a database does not have yet (`PRAGMA
-/// table_info` first, so opening an up-to-date database changes nothing).
-fn migrate_columns(conn: &Connection) -> rusqlite::Result<()> {
-    let existing: Vec<String> = {
-        let mut stmt = conn.prepare("PRAGMA table_info(jobs)")?;
-        stmt.query_map([], |r| r.get::<_, String>(1))?.collect::<Result<_, _>>()?
-    };
-    for (name, decl) in ADDED_COLUMNS {
-        if !existing.iter().any(|c| c == name) {
-            conn.execute_batch(&format!("ALTER TABLE jobs ADD COLUMN {name} {decl}"))?;
-        }
-    }
-    Ok(())
-}
 
 /// Outcome of recovering jobs left `running` by a crash.
 #[derive(Debug, Clone, Default, PartialEq, Eq)]
@@ -223,7 +230,7 @@ impl Store {
         conn.pragma_update(None, "synchronous", "FULL")?;
         conn.busy_timeout(std::time::Duration::from_secs(5))?;
         conn.execute_batch(SCHEMA)?;
-        migrate_columns(&conn)?;
+        add_missing_columns(&conn)?;
         Ok(Self { conn: Mutex::new(conn) })
     }
 
@@ -234,7 +241,7 @@ impl Store {
     pub fn open_in_memory() -> Result<Self, StoreError> {
         let conn = Connection::open_in_memory()?;
         conn.execute_batch(SCHEMA)?;
-        migrate_columns(&conn)?;
+        add_missing_columns(&conn)?;
         Ok(Self { conn: Mutex::new(conn) })
     }
 
@@ -259,6 +266,7 @@ impl Store {
         params: &serde_json::Value,
         memory_estimate_bytes: u64,
         max_queued: usize,
+        tenant: Option<&str>,
     ) -> Result<Option<JobRecord>, StoreError> {
         let mut conn = self.conn();
         let tx = conn.transaction()?;
@@ -267,8 +275,9 @@ impl Store {
             return Ok(None);
         }
         tx.execute(
-            "INSERT INTO jobs (id, state, created_ms, input_name, input_bytes, format, params, memory_estimate_bytes) \
-             VALUES (?1, 'queued', ?2, ?3, ?4, ?5, ?6, ?7)",
+            "INSERT INTO jobs (id, state, created_ms, input_name, input_bytes, format, params, \
+             memory_estimate_bytes, tenant) \
+             VALUES (?1, 'queued', ?2, ?3, ?4, ?5, ?6, ?7, ?8)",
             params![
                 id.to_string(),
                 now_ms(),
@@ -276,7 +285,8 @@ impl Store {
                 i64::try_from(input_bytes).unwrap_or(i64::MAX),
                 format,
                 json("params", params)?,
-                i64::try_from(memory_estimate_bytes).unwrap_or(i64::MAX)
+                i64::try_from(memory_estimate_bytes).unwrap_or(i64::MAX),
+                tenant
             ],
         )?;
         tx.commit()?;
@@ -296,17 +306,20 @@ impl Store {
         raw.map(RawRow::into_record).transpose()
     }
 
-    /// Up to `limit` jobs with `seq < before` (all when `None`), newest first.
+    /// Up to `limit` jobs with `seq < before` (all when `None`), newest
+    /// first; only `tenant`'s jobs when a tenant is given.
     ///
     /// # Errors
     /// [`StoreError`] on database failure or an undecodable row.
-    pub fn list(&self, limit: usize, before: Option<i64>) -> Result<JobPage, StoreError> {
+    pub fn list(&self, limit: usize, before: Option<i64>, tenant: Option<&str>) -> Result<JobPage, StoreError> {
         let conn = self.conn();
-        let mut stmt =
-            conn.prepare(&format!("SELECT {COLUMNS} FROM jobs WHERE seq < ?1 ORDER BY seq DESC LIMIT ?2"))?;
+        let mut stmt = conn.prepare(&format!(
+            "SELECT {COLUMNS} FROM jobs WHERE seq < ?1 AND (?3 IS NULL OR tenant = ?3) ORDER BY seq DESC LIMIT ?2"
+        ))?;
         let take = i64::try_from(limit.saturating_add(1)).unwrap_or(i64::MAX);
-        let raws =
-            stmt.query_map(params![before.unwrap_or(i64::MAX), take], RawRow::read)?.collect::<Result<Vec<_>, _>>()?;
+        let raws = stmt
+            .query_map(params![before.unwrap_or(i64::MAX), take, tenant], RawRow::read)?
+            .collect::<Result<Vec<_>, _>>()?;
         drop(stmt);
         drop(conn);
         let mut jobs = raws.into_iter().map(RawRow::into_record).collect::<Result<Vec<_>, _>>()?;
@@ -569,6 +582,73 @@ impl Store {
         Ok(usize::try_from(n).unwrap_or(0))
     }
 
+    /// The tenant of job `id`: `None` when there is no such job,
+    /// `Some(None)` for a job made without authentication.
+    ///
+    /// # Errors
+    /// [`StoreError`] on database failure.
+    pub fn owner(&self, id: JobId) -> Result<Option<Option<String>>, StoreError> {
+        Ok(self.conn().query_row("SELECT tenant FROM jobs WHERE id = ?1", [id.to_string()], |r| r.get(0)).optional()?)
+    }
+
+    /// Number of queued jobs of `tenant`.
+    ///
+    /// # Errors
+    /// [`StoreError`] on database failure.
+    pub fn queued_count_of(&self, tenant: &str) -> Result<usize, StoreError> {
+        let n: i64 = self.conn().query_row(
+            "SELECT count(*) FROM jobs WHERE state = 'queued' AND tenant = ?1",
+            [tenant],
+            |r| r.get(0),
+        )?;
+        Ok(usize::try_from(n).unwrap_or(0))
+    }
+
+    /// Bytes of uploads plus listed artifacts of every job (of `tenant`'s
+    /// jobs only when a tenant is given).
+    ///
+    /// # Errors
+    /// [`StoreError`] on database failure.
+    pub fn stored_bytes(&self, tenant: Option<&str>) -> Result<u64, StoreError> {
+        let n: i64 = self.conn().query_row(
+            "SELECT coalesce(sum(input_bytes), 0) + coalesce(sum( \
+                 (SELECT sum(json_extract(a.value, '$.bytes')) FROM json_each(jobs.artifacts) AS a)), 0) \
+             FROM jobs WHERE ?1 IS NULL OR tenant = ?1",
+            [tenant],
+            |r| r.get(0),
+        )?;
+        Ok(u64::try_from(n).unwrap_or(0))
+    }
+
+    /// Ids of finished jobs (succeeded, failed, cancelled) that ended before
+    /// `cutoff_ms`, oldest first.
+    ///
+    /// # Errors
+    /// [`StoreError`] on database failure or a corrupt id.
+    pub fn finished_before(&self, cutoff_ms: i64) -> Result<Vec<JobId>, StoreError> {
+        let conn = self.conn();
+        let mut stmt = conn.prepare(
+            "SELECT id FROM jobs WHERE state IN ('succeeded', 'failed', 'cancelled') AND finished_ms < ?1 \
+             ORDER BY finished_ms",
+        )?;
+        let ids = stmt.query_map([cutoff_ms], |r| r.get::<_, String>(0))?.collect::<Result<Vec<_>, _>>()?;
+        ids.into_iter()
+            .map(|id| id.parse::<JobId>().map_err(|e| StoreError::Corrupt { id, what: e.to_string() }))
+            .collect()
+    }
+
+    /// Deletes the record if the job is finished. Returns whether it was.
+    ///
+    /// # Errors
+    /// [`StoreError`] on database failure.
+    pub fn delete_if_final(&self, id: JobId) -> Result<bool, StoreError> {
+        let n = self.conn().execute(
+            "DELETE FROM jobs WHERE id = ?1 AND state IN ('succeeded', 'failed', 'cancelled')",
+            [id.to_string()],
+        )?;
+        Ok(n == 1)
+    }
+
     /// Ids of every job (for cleaning orphaned directories at start-up).
     ///
     /// # Errors
@@ -586,7 +666,9 @@ mod tests {
     use super::*;
 
     fn insert(store: &Store, max: usize) -> Option<JobRecord> {
-        store.insert_queued(JobId::random(), "a.stl", 10, Some("stl"), &serde_json::json!({"stages": []}), 0, max).unwrap()
+        store
+            .insert_queued(JobId::random(), "a.stl", 10, Some("stl"), &serde_json::json!({"stages": []}), 0, max, None)
+            .unwrap()
     }
 
     #[test]
@@ -622,11 +704,11 @@ mod tests {
     fn list_is_newest_first_and_paginates() {
         let s = Store::open_in_memory().unwrap();
         let ids: Vec<JobId> = (0..5).map(|_| insert(&s, 100).unwrap().id).collect();
-        let p1 = s.list(2, None).unwrap();
+        let p1 = s.list(2, None, None).unwrap();
         assert_eq!(p1.jobs.iter().map(|j| j.id).collect::<Vec<_>>(), vec![ids[4], ids[3]]);
-        let p2 = s.list(2, p1.next_cursor).unwrap();
+        let p2 = s.list(2, p1.next_cursor, None).unwrap();
         assert_eq!(p2.jobs.iter().map(|j| j.id).collect::<Vec<_>>(), vec![ids[2], ids[1]]);
-        let p3 = s.list(2, p2.next_cursor).unwrap();
+        let p3 = s.list(2, p2.next_cursor, None).unwrap();
         assert_eq!(p3.jobs.iter().map(|j| j.id).collect::<Vec<_>>(), vec![ids[0]]);
         assert_eq!(p3.next_cursor, None);
     }
@@ -676,6 +758,65 @@ mod tests {
         drop(s);
         let s = Store::open(&path).unwrap();
         assert_eq!(s.queued_count().unwrap(), 1);
+    }
+
+    #[test]
+    fn an_old_database_gets_the_tenant_column_and_keeps_its_jobs() {
+        let dir = tempfile::tempdir().unwrap();
+        let path = dir.path().join("jobs.sqlite3");
+        {
+            let conn = Connection::open(&path).unwrap();
+            conn.execute_batch(SCHEMA).unwrap();
+            conn.execute(
+                "INSERT INTO jobs (id, state, created_ms, input_name, input_bytes, params) \
+                 VALUES (?1, 'queued', 1, 'old.stl', 7, '{}')",
+                [JobId::random().to_string()],
+            )
+            .unwrap();
+        }
+        let s = Store::open(&path).unwrap();
+        let page = s.list(10, None, None).unwrap();
+        assert_eq!(page.jobs.len(), 1);
+        assert_eq!(s.owner(page.jobs[0].id).unwrap(), Some(None), "an old job has no tenant");
+        assert!(s.list(10, None, Some("a")).unwrap().jobs.is_empty(), "an old job belongs to no tenant");
+        drop(s);
+        Store::open(&path).unwrap();
+    }
+
+    #[test]
+    fn tenants_scope_lists_counts_and_stored_bytes() {
+        let s = Store::open_in_memory().unwrap();
+        let params = serde_json::json!({});
+        let add = |t: Option<&str>, bytes: u64| {
+            s.insert_queued(JobId::random(), "a.stl", bytes, None, &params, 0, 100, t).unwrap().unwrap().id
+        };
+        let a1 = add(Some("a"), 100);
+        let b1 = add(Some("b"), 10);
+        let a2 = add(Some("a"), 1000);
+        let anon = add(None, 1);
+        let ids = |p: JobPage| p.jobs.iter().map(|j| j.id).collect::<Vec<_>>();
+        assert_eq!(ids(s.list(10, None, Some("a")).unwrap()), vec![a2, a1]);
+        assert_eq!(ids(s.list(10, None, Some("b")).unwrap()), vec![b1]);
+        assert_eq!(ids(s.list(10, None, None).unwrap()), vec![anon, a2, b1, a1]);
+        assert_eq!(s.owner(a1).unwrap(), Some(Some("a".to_string())));
+        assert_eq!(s.owner(JobId::random()).unwrap(), None);
+        assert_eq!(s.queued_count_of("a").unwrap(), 2);
+        assert_eq!(s.stored_bytes(Some("a")).unwrap(), 1100);
+        assert_eq!(s.stored_bytes(None).unwrap(), 1111);
+        let claimed = s.claim_next().unwrap().unwrap();
+        assert_eq!(claimed.id, a1);
+        let art = vec![
+            Artifact { name: "x".into(), bytes: 5, media_type: "t".into() },
+            Artifact { name: "y".into(), bytes: 7, media_type: "t".into() },
+        ];
+        s.finish_succeeded(a1, &serde_json::json!({}), &BTreeMap::new(), &art).unwrap();
+        assert_eq!(s.stored_bytes(Some("a")).unwrap(), 1112);
+        assert_eq!(s.queued_count_of("a").unwrap(), 1);
+        assert_eq!(s.finished_before(now_ms() + 1).unwrap(), vec![a1]);
+        assert!(s.finished_before(now_ms() - 60_000).unwrap().is_empty());
+        assert!(!s.delete_if_final(a2).unwrap(), "a queued job is not deleted");
+        assert!(s.delete_if_final(a1).unwrap());
+        assert_eq!(s.stored_bytes(None).unwrap(), 1011);
     }
 
     #[test]

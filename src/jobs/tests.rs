@@ -20,6 +20,7 @@ async fn submit(svc: &JobService) -> Result<JobRecord, JobsError> {
         input_bytes: 19,
         format: Some("stl".into()),
         params: serde_json::json!({}),
+        tenant: None,
     })
     .await
 }
@@ -144,7 +145,7 @@ async fn delete_removes_a_running_job_and_its_files() {
     wait_for(&svc, b.id, |r| r.state == JobState::Running).await;
     svc.delete(b.id).await.unwrap();
     assert!(matches!(svc.delete(b.id).await, Err(JobsError::NotFound(_))));
-    assert!(svc.list(10, None).await.unwrap().jobs.is_empty());
+    assert!(svc.list(10, None, None).await.unwrap().jobs.is_empty());
 }
 
 #[tokio::test]
@@ -204,7 +205,7 @@ async fn a_restart_requeues_the_interrupted_job() {
         let cfg = config(dir.path());
         std::fs::create_dir_all(cfg.input_path(id, "x.stl").parent().unwrap()).unwrap();
         std::fs::write(cfg.input_path(id, "x.stl"), b"x").unwrap();
-        store.insert_queued(id, "x.stl", 1, None, &serde_json::json!({}), 0, 10).unwrap();
+        store.insert_queued(id, "x.stl", 1, None, &serde_json::json!({}), 0, 10, None).unwrap();
         store.claim_next().unwrap();
         std::fs::create_dir_all(dir.path().join("jobs/not-a-job")).unwrap();
         id
@@ -229,4 +230,65 @@ async fn shutdown_puts_the_running_job_back_without_counting_the_attempt() {
     let svc = JobService::start(config(dir.path()), Arc::new(quick)).unwrap();
     let done = wait_for(&svc, rec.id, |r| r.state.is_final()).await;
     assert_eq!((done.state, done.attempts), (JobState::Succeeded, 1));
+}
+
+/// Like [`submit`], as `tenant`.
+async fn submit_as(svc: &JobService, tenant: &str) -> Result<JobRecord, JobsError> {
+    let path = svc.upload_path();
+    std::fs::write(&path, b"solid x\nendsolid x\n").unwrap();
+    let new = NewJob {
+        upload_path: path,
+        input_name: "x.stl".into(),
+        input_bytes: 19,
+        format: Some("stl".into()),
+        params: serde_json::json!({}),
+        tenant: Some(tenant.to_string()),
+    };
+    svc.submit(new).await
+}
+
+#[tokio::test]
+async fn concurrent_submissions_never_exceed_the_stored_bytes_quota() {
+    let dir = tempfile::tempdir().unwrap();
+    let exec = |_: &JobInput, p: &Progress| wait_for_cancel(p);
+    let quotas = Quotas { max_stored_bytes: Some(3 * 19), ..Default::default() };
+    let svc = JobService::start(JobsConfig { quotas, ..config(dir.path()) }, Arc::new(exec)).unwrap();
+    let tasks: Vec<_> = (0..12)
+        .map(|i| {
+            let svc = svc.clone();
+            tokio::spawn(async move { submit_as(&svc, if i % 2 == 0 { "a" } else { "b" }).await })
+        })
+        .collect();
+    let mut accepted = 0;
+    for t in tasks {
+        match t.await.unwrap() {
+            Ok(_) => accepted += 1,
+            Err(JobsError::QuotaExceeded { tenant: false, max_bytes: 57 }) => {}
+            Err(e) => panic!("{e}"),
+        }
+    }
+    assert_eq!(accepted, 3, "a quota of three uploads admitted {accepted}");
+    assert_eq!(std::fs::read_dir(dir.path().join("tmp")).unwrap().count(), 0, "refused uploads must be removed");
+}
+
+#[tokio::test]
+async fn a_tenant_sees_only_its_jobs_and_a_foreign_id_is_not_found() {
+    let dir = tempfile::tempdir().unwrap();
+    let exec = |_: &JobInput, p: &Progress| wait_for_cancel(p);
+    let quotas = Quotas { tenant_max_queued: Some(1), ..Default::default() };
+    let cfg = JobsConfig { quotas, workers: 1, ..config(dir.path()) };
+    let svc = JobService::start(cfg, Arc::new(exec)).unwrap();
+    let a = submit_as(&svc, "a").await.unwrap();
+    wait_for(&svc, a.id, |r| r.state == JobState::Running).await;
+    let a2 = submit_as(&svc, "a").await.unwrap();
+    assert!(matches!(submit_as(&svc, "a").await, Err(JobsError::TenantQueueFull { max_queued: 1 })));
+    let b = submit_as(&svc, "b").await.unwrap();
+    assert!(svc.check_visible(a.id, Some("a".into())).await.is_ok());
+    assert!(svc.check_visible(a.id, None).await.is_ok(), "without authentication every job is visible");
+    assert!(matches!(svc.check_visible(a.id, Some("b".into())).await, Err(JobsError::NotFound(id)) if id == a.id));
+    assert!(matches!(svc.check_visible(JobId::random(), Some("b".into())).await, Err(JobsError::NotFound(_))));
+    let ids = |p: JobPage| p.jobs.iter().map(|j| j.id).collect::<Vec<_>>();
+    assert_eq!(ids(svc.list(10, None, Some("a".into())).await.unwrap()), vec![a2.id, a.id]);
+    assert_eq!(ids(svc.list(10, None, Some("b".into())).await.unwrap()), vec![b.id]);
+    assert_eq!(svc.list(10, None, None).await.unwrap().jobs.len(), 3);
 }

@@ -27,7 +27,7 @@ impl Server {
         let jobs = JobService::start(cfg, exec).unwrap();
         let listener = tokio::net::TcpListener::bind("127.0.0.1:0").await.unwrap();
         let addr = listener.local_addr().unwrap();
-        let state = AppState { jobs: jobs.clone(), limits: Arc::new(limits) };
+        let state = AppState { jobs: jobs.clone(), limits: Arc::new(limits), auth: None };
         tokio::spawn(meshatlas::http::serve(listener, state, std::future::pending()));
         Server { base: format!("http://{addr}"), client: reqwest::Client::new(), jobs, dir }
     }
