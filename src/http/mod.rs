@@ -12,6 +12,8 @@
 
 pub mod error;
 pub mod handlers;
+pub mod multipart_framing;
+pub mod range;
 pub mod upload;
 
 use std::future::Future;
