@@ -100,6 +100,36 @@ async fn a_preamble_over_8_kib_is_rejected() {
     assert_eq!(job_count(&s).await, 1);
 }
 
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn multipart_parts_keep_their_own_limits() {
+    // Not a defect of issue 11: the limits that held must still hold with the new parser.
+    let s = Server::start(&["--max-upload-bytes", "1048576"]);
+    let big = vec![b'a'; 1024 * 1024 + 1];
+    let r = post_multipart(&s, multipart_body(b"", &[], &big, "{}").into()).await.unwrap();
+    expect_problem(r, 413, "upload-too-large").await;
+    // The same without Content-Length (chunked): the file part's own limit answers.
+    let chunked = generated_body(multipart_body(b"", &[], &big, "{}"), b'x', 0, Vec::new());
+    let r = post_multipart(&s, chunked).await.unwrap();
+    expect_problem(r, 413, "upload-too-large").await;
+    let params = format!("{{\"stages\": [], \"x\": \"{}\"}}", "p".repeat(70 * 1024));
+    let r = post_multipart(&s, multipart_body(b"", &[], &tiny_stl(), &params).into()).await.unwrap();
+    expect_problem(r, 422, "invalid-params").await;
+    // (A declared Content-Length over the limit is refused early, so the body as a whole stays under it.)
+    let exact = vec![b'a'; 1024 * 1024 - 2048];
+    let r = post_multipart(&s, multipart_body(b"", &[], &exact, r#"{"stages": []}"#).into()).await.unwrap();
+    assert_eq!(r.status(), 202, "a file just under the limit fits");
+    let r = s
+        .client
+        .post(s.url("/v1/jobs"))
+        .header("content-type", "multipart/form-data")
+        .body(multipart_body(b"", &[], &tiny_stl(), "{}"))
+        .send()
+        .await
+        .unwrap();
+    expect_problem(r, 400, "invalid-multipart").await;
+    assert!(s.tmp_files().is_empty(), "{:?}", s.tmp_files());
+}
+
 /// Streams `prefix` followed by `n_chunks` chunks of 64 KiB of `fill`
 /// (generated, never held whole in memory), then `suffix`.
 fn generated_body(prefix: Vec<u8>, fill: u8, n_chunks: usize, suffix: Vec<u8>) -> reqwest::Body {
