@@ -32,3 +32,5 @@ pub mod pipeline;
 pub mod jobs;
 
 pub mod http;
+
+pub mod log_format;

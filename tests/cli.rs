@@ -68,6 +68,19 @@ fn run_reports_bad_params_stages_and_inputs_clearly() {
     assert!(!o.status.success());
     let err = String::from_utf8_lossy(&o.stderr);
     assert!(err.contains("load.wobble"), "{err}");
+    std::fs::write(&params, r#"[["crossfield"]]"#).unwrap();
+    let o = meshatlas()
+        .arg("run")
+        .arg(&input)
+        .args(["--out"])
+        .arg(dir.path().join("o"))
+        .arg("--params")
+        .arg(&params)
+        .output()
+        .unwrap();
+    assert!(!o.status.success());
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert!(err.contains("parameters must be a JSON object, got an array"), "{err}");
     let o = meshatlas()
         .arg("run")
         .arg(&input)

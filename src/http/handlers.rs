@@ -3,7 +3,8 @@
 use axum::Json;
 use axum::body::Body;
 use axum::extract::rejection::QueryRejection;
-use axum::extract::{FromRequest, Path, Query, Request, State};
+use axum::extract::{Path, Query, Request, State};
+use axum::http::request::Parts;
 use axum::http::{HeaderValue, StatusCode, header};
 use axum::response::{IntoResponse, Response};
 use serde::Deserialize;
@@ -13,6 +14,7 @@ use tower::ServiceExt;
 use super::AppState;
 use super::auth::Scope;
 use super::error::ApiError;
+use super::range;
 use super::upload::{self, SubmitQuery};
 use crate::jobs::{JobId, JobRecord, JobsError, NewJob, model::rfc3339};
 use crate::pipeline::parse_params;
@@ -165,10 +167,7 @@ pub async fn submit_job(
     };
     let path = st.jobs.upload_path();
     let mut up = if is_multipart {
-        let mp = axum::extract::Multipart::from_request(req, &st)
-            .await
-            .map_err(|e| ApiError::new("invalid-multipart", e.body_text()))?;
-        upload::receive_multipart(mp, path, limit).await?
+        upload::receive_multipart(req.into_body(), &headers, path, limit).await?
     } else {
         upload::receive_raw(req.into_body(), &headers, path, limit).await?
     };
@@ -292,7 +291,42 @@ pub async fn delete_job(
     }
 }
 
-/// `GET /v1/jobs/{id}/artifacts/{name}`: the file, with Range support.
+/// Serves the file at `path` for `req`, with `range` (canonical, from
+/// [`range::range_to_serve`]) as the only `Range` the file server sees.
+async fn serve_file(path: &std::path::Path, req: &Parts, range: Option<&str>) -> Result<Response, ApiError> {
+    let mut inner = Request::new(Body::empty());
+    *inner.method_mut() = req.method.clone();
+    *inner.uri_mut() = req.uri.clone();
+    *inner.headers_mut() = req.headers.clone();
+    inner.headers_mut().remove(header::RANGE);
+    if let Some(v) = range.and_then(|r| HeaderValue::from_str(r).ok()) {
+        inner.headers_mut().insert(header::RANGE, v);
+    }
+    let served = tower_http::services::ServeFile::new(path).oneshot(inner).await.map_err(ApiError::internal)?;
+    if served.status() == StatusCode::NOT_FOUND {
+        return Err(ApiError::internal(format!("artifact file {} is missing", path.display())));
+    }
+    Ok(served.map(Body::new))
+}
+
+/// The 416 problem for a range past the end, keeping `Content-Range: bytes */LEN`.
+fn range_not_satisfiable(range: &str, served: &Response) -> Response {
+    let content_range = served.headers().get(header::CONTENT_RANGE).cloned();
+    let len = content_range.as_ref().and_then(|v| v.to_str().ok()).and_then(|v| v.strip_prefix("bytes */"));
+    let detail = match len {
+        Some(len) => format!("the range `{range}` lies outside the artifact's {len} bytes"),
+        None => format!("the range `{range}` lies outside the artifact"),
+    };
+    let mut resp = ApiError::new("range-not-satisfiable", detail).into_response();
+    if let Some(v) = content_range {
+        resp.headers_mut().insert(header::CONTENT_RANGE, v);
+    }
+    resp
+}
+
+/// `GET /v1/jobs/{id}/artifacts/{name}`: the file, with one byte range at
+/// most (RFC 9110: unknown units, invalid or multiple ranges give the whole
+/// file; a stale `If-Range` too).
 pub async fn get_artifact(
     State(st): State<AppState>,
     scope: Scope,
@@ -300,11 +334,15 @@ pub async fn get_artifact(
     req: Request,
 ) -> Result<Response, ApiError> {
     let (path, art) = st.jobs.artifact(visible_id(&st, &scope, &id).await?, name).await?;
-    let served = tower_http::services::ServeFile::new(&path).oneshot(req).await.map_err(ApiError::internal)?;
-    if served.status() == StatusCode::NOT_FOUND {
-        return Err(ApiError::internal(format!("artifact file {} is missing", path.display())));
+    let (req, _) = req.into_parts();
+    let range = range::range_to_serve(&req.headers);
+    let mut resp = serve_file(&path, &req, range.as_deref()).await?;
+    if range.is_some() && !range::if_range_holds(&req.headers, resp.headers()) {
+        resp = serve_file(&path, &req, None).await?;
     }
-    let mut resp = served.map(Body::new);
+    if resp.status() == StatusCode::RANGE_NOT_SATISFIABLE {
+        return Ok(range_not_satisfiable(range.as_deref().unwrap_or(""), &resp));
+    }
     if resp.status().is_success() {
         if let Ok(v) = HeaderValue::from_str(&art.media_type) {
             resp.headers_mut().insert(header::CONTENT_TYPE, v);

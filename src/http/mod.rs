@@ -13,6 +13,8 @@
 pub mod auth;
 pub mod error;
 pub mod handlers;
+pub mod multipart_framing;
+pub mod range;
 pub mod upload;
 
 use std::future::Future;

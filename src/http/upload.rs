@@ -10,18 +10,22 @@
 //!   shorthand (`?stages=atlas,crossfield`);
 //! - `multipart/form-data`: a `file` part (its file name's extension and
 //!   Content-Type help detect the format) and an optional `params` part
-//!   holding the JSON parameters.
+//!   holding the JSON parameters; the preamble and part headers are capped
+//!   (see [`super::multipart_framing`]).
 
 use std::path::{Path, PathBuf};
+use std::pin::Pin;
+use std::sync::{Arc, Mutex};
+use std::task::{Context, Poll};
 
 use axum::body::Bytes;
-use axum::extract::Multipart;
 use axum::http::{HeaderMap, header};
 use futures_util::{Stream, StreamExt};
 use serde::Deserialize;
 use tokio::io::AsyncWriteExt;
 
 use super::error::ApiError;
+use super::multipart_framing::{FramingError, FramingGuard, MAX_PART_HEADER_BYTES, MAX_PREAMBLE_BYTES};
 use crate::io::Format;
 
 /// Bytes kept from the start of the upload for format sniffing.
@@ -158,12 +162,94 @@ pub async fn receive_raw(
     Ok(up)
 }
 
+/// A stream shared between the multipart parser and the code that drains
+/// the rest of a rejected body.
+struct SharedStream<S>(Arc<Mutex<S>>);
+
+impl<S> Clone for SharedStream<S> {
+    fn clone(&self) -> Self {
+        Self(Arc::clone(&self.0))
+    }
+}
+
+impl<S: Stream + Unpin> Stream for SharedStream<S> {
+    type Item = S::Item;
+
+    fn poll_next(self: Pin<&mut Self>, cx: &mut Context<'_>) -> Poll<Option<S::Item>> {
+        match self.0.lock() {
+            Ok(mut s) => s.poll_next_unpin(cx),
+            Err(_) => Poll::Ready(None),
+        }
+    }
+}
+
+/// The parser's limits: the whole body may hold the upload limit plus the
+/// `params` part and the (capped) framing; a `params` part at most
+/// [`MAX_PARAMS_BYTES`], the `file` part at most `limit`.
+fn multipart_constraints(limit: u64) -> multer::Constraints {
+    let framing = (MAX_PREAMBLE_BYTES + 4 * MAX_PART_HEADER_BYTES + 1024) as u64;
+    let params = MAX_PARAMS_BYTES as u64;
+    multer::Constraints::new().size_limit(
+        multer::SizeLimit::new()
+            .whole_stream(limit.saturating_add(params).saturating_add(framing))
+            .per_field(params)
+            .for_field("params", params)
+            .for_field("file", limit),
+    )
+}
+
+/// The client-facing error for a multipart parser error.
+fn multipart_error(e: multer::Error, limit: u64) -> ApiError {
+    match e {
+        multer::Error::StreamReadFailed(inner) => match inner.downcast_ref::<FramingError>() {
+            Some(FramingError::Body(cause)) => {
+                ApiError::new("upload-interrupted", format!("reading the upload failed: {cause}"))
+            }
+            Some(framing) => ApiError::new("invalid-multipart", framing.to_string()),
+            None => ApiError::new("upload-interrupted", format!("reading the upload failed: {inner}")),
+        },
+        multer::Error::StreamSizeExceeded { .. } => ApiError::upload_too_large(limit),
+        multer::Error::FieldSizeExceeded { field_name, .. } if field_name.as_deref() == Some("file") => {
+            ApiError::upload_too_large(limit)
+        }
+        multer::Error::FieldSizeExceeded { field_name, .. } => {
+            let name = field_name.unwrap_or_default();
+            ApiError::new("invalid-params", format!("the `{name}` part exceeds {MAX_PARAMS_BYTES} bytes"))
+        }
+        other => ApiError::new("invalid-multipart", other.to_string()),
+    }
+}
+
+/// A part's data as a stream whose parser errors are kept, classified, in
+/// `error` (the file writer only sees their text).
+struct PartData<'a> {
+    field: multer::Field<'static>,
+    limit: u64,
+    error: &'a mut Option<ApiError>,
+}
+
+impl Stream for PartData<'_> {
+    type Item = Result<Bytes, String>;
+
+    fn poll_next(mut self: Pin<&mut Self>, cx: &mut Context<'_>) -> Poll<Option<Self::Item>> {
+        match self.field.poll_next_unpin(cx) {
+            Poll::Ready(Some(Err(e))) => {
+                let err = multipart_error(e, self.limit);
+                let text = err.kind().to_string();
+                *self.error = Some(err);
+                Poll::Ready(Some(Err(text)))
+            }
+            Poll::Ready(Some(Ok(b))) => Poll::Ready(Some(Ok(b))),
+            Poll::Ready(None) => Poll::Ready(None),
+            Poll::Pending => Poll::Pending,
+        }
+    }
+}
+
 /// Reads a small text part (params) with a size cap.
-async fn read_small_part(mut field: axum::extract::multipart::Field<'_>, name: &str) -> Result<Vec<u8>, ApiError> {
+async fn read_small_part(mut field: multer::Field<'static>, name: &str, limit: u64) -> Result<Vec<u8>, ApiError> {
     let mut buf = Vec::new();
-    while let Some(chunk) =
-        field.chunk().await.map_err(|e| ApiError::new("invalid-multipart", format!("part `{name}`: {e}")))?
-    {
+    while let Some(chunk) = field.chunk().await.map_err(|e| multipart_error(e, limit))? {
         buf.extend_from_slice(&chunk);
         if buf.len() > MAX_PARAMS_BYTES {
             return Err(ApiError::new("invalid-params", format!("the `{name}` part exceeds {MAX_PARAMS_BYTES} bytes")));
@@ -172,18 +258,45 @@ async fn read_small_part(mut field: axum::extract::multipart::Field<'_>, name: &
     Ok(buf)
 }
 
+/// The boundary of a `multipart/form-data` Content-Type.
+fn multipart_boundary(headers: &HeaderMap) -> Result<String, ApiError> {
+    let ct = headers.get(header::CONTENT_TYPE).and_then(|v| v.to_str().ok()).unwrap_or("");
+    multer::parse_boundary(ct).map_err(|e| ApiError::new("invalid-multipart", format!("Content-Type: {e}")))
+}
+
 /// Receives a multipart body: one `file` part (streamed to `path`) and an
-/// optional `params` part. Other part names are rejected.
+/// optional `params` part. Other part names are rejected. The preamble and
+/// each part's headers are capped ([`MAX_PREAMBLE_BYTES`],
+/// [`MAX_PART_HEADER_BYTES`]) and the whole body may exceed `limit` only by
+/// the `params` part and that framing. After an error what is left of the
+/// body is drained (see [`drain`]).
 ///
 /// # Errors
-/// 400 for malformed multipart, a missing or repeated part, or an unknown
-/// part; 413 past `limit`; 500 on disk errors.
-pub async fn receive_multipart(mut mp: Multipart, path: PathBuf, limit: u64) -> Result<Upload, ApiError> {
+/// 400 for malformed multipart (framing over its caps included), a missing
+/// or repeated part, or an unknown part; 413 past `limit`; 422 for a
+/// `params` part over [`MAX_PARAMS_BYTES`]; 500 on disk errors.
+pub async fn receive_multipart(
+    body: axum::body::Body,
+    headers: &HeaderMap,
+    path: PathBuf,
+    limit: u64,
+) -> Result<Upload, ApiError> {
+    let boundary = multipart_boundary(headers)?;
+    let shared = SharedStream(Arc::new(Mutex::new(body.into_data_stream())));
+    let guarded = FramingGuard::new(shared.clone(), &boundary);
+    let mp = multer::Multipart::with_constraints(guarded, boundary, multipart_constraints(limit));
+    let result = read_parts(mp, path, limit).await;
+    if result.is_err() {
+        drain(shared).await;
+    }
+    result
+}
+
+/// Reads the parts of `mp` (see [`receive_multipart`]).
+async fn read_parts(mut mp: multer::Multipart<'static>, path: PathBuf, limit: u64) -> Result<Upload, ApiError> {
     let mut up = Upload::new(path);
     let mut have_file = false;
-    loop {
-        let field = mp.next_field().await.map_err(|e| ApiError::new("invalid-multipart", e.body_text()))?;
-        let Some(field) = field else { break };
+    while let Some(field) = mp.next_field().await.map_err(|e| multipart_error(e, limit))? {
         let name = field.name().unwrap_or("").to_string();
         match name.as_str() {
             "file" => {
@@ -192,15 +305,22 @@ pub async fn receive_multipart(mut mp: Multipart, path: PathBuf, limit: u64) -> 
                 }
                 have_file = true;
                 up.filename = field.file_name().map(str::to_string);
-                up.content_type =
-                    field.content_type().map(|c| c.split(';').next().unwrap_or("").trim().to_ascii_lowercase());
-                stream_to_file(field, &mut up, limit).await?;
+                up.content_type = field
+                    .headers()
+                    .get(header::CONTENT_TYPE)
+                    .and_then(|v| v.to_str().ok())
+                    .map(|c| c.split(';').next().unwrap_or("").trim().to_ascii_lowercase());
+                let mut error = None;
+                let written = stream_to_file(PartData { field, limit, error: &mut error }, &mut up, limit).await;
+                if let Err(e) = written {
+                    return Err(error.unwrap_or(e));
+                }
             }
             "params" => {
                 if up.params_part.is_some() {
                     return Err(ApiError::new("invalid-multipart", "more than one `params` part"));
                 }
-                up.params_part = Some(read_small_part(field, "params").await?);
+                up.params_part = Some(read_small_part(field, "params", limit).await?);
             }
             other => {
                 return Err(ApiError::new(

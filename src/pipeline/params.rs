@@ -103,24 +103,52 @@ fn unknown_field_name(message: &str) -> Option<&str> {
     rest.split('`').next()
 }
 
+/// serde_json's message without its " at line L column C" suffix.
+fn serde_message(e: &serde_json::Error) -> String {
+    let full = e.to_string();
+    match full.rfind(" at line ") {
+        Some(k) if e.line() > 0 => full[..k].to_string(),
+        _ => full,
+    }
+}
+
+/// Rejects JSON text whose top-level value is not an object.
+///
+/// serde's derived `Deserialize` also accepts a struct written as a sequence
+/// of its fields (`[["crossfield"]]` would set `stages`), which the API's
+/// schema (`type: object`) does not allow. Text that is no JSON at all is a
+/// syntax error.
+fn require_object(json: &[u8]) -> Result<(), ParamsError> {
+    let first = json.iter().find(|b| !matches!(b, b' ' | b'\t' | b'\n' | b'\r'));
+    if first == Some(&b'{') {
+        return Ok(());
+    }
+    let got = match serde_json::from_slice::<serde_json::Value>(json) {
+        Ok(serde_json::Value::Array(_)) => "an array",
+        Ok(serde_json::Value::Number(_)) => "a number",
+        Ok(serde_json::Value::String(_)) => "a string",
+        Ok(serde_json::Value::Bool(_)) => "a boolean",
+        Ok(serde_json::Value::Null) => "null",
+        Ok(serde_json::Value::Object(_)) => return Ok(()),
+        Err(e) => return Err(ParamsError { field: None, message: serde_message(&e), syntax: true }),
+    };
+    Err(ParamsError { field: None, message: format!("parameters must be a JSON object, got {got}"), syntax: false })
+}
+
 /// Parses pipeline parameters from JSON, naming the offending field on error.
 ///
 /// # Errors
-/// [`ParamsError`] for malformed JSON, unknown fields, wrong types or
-/// unknown stages.
+/// [`ParamsError`] for malformed JSON, a top-level value that is not an
+/// object, unknown fields, wrong types or unknown stages.
 pub fn parse_params(json: &[u8]) -> Result<PipelineParams, ParamsError> {
+    require_object(json)?;
     let mut de = serde_json::Deserializer::from_slice(json);
     let parsed: Result<PipelineParams, _> = serde_path_to_error::deserialize(&mut de);
     let params = parsed.map_err(|e| {
         let path = e.path().to_string();
         let inner = e.into_inner();
         let syntax = inner.is_syntax() || inner.is_eof();
-        // serde's own message, without the " at line L column C" suffix.
-        let full = inner.to_string();
-        let message = match full.rfind(" at line ") {
-            Some(k) if inner.line() > 0 => full[..k].to_string(),
-            _ => full,
-        };
+        let message = serde_message(&inner);
         let field = match unknown_field_name(&message) {
             Some(name) if path == "." || path.is_empty() => Some(name.to_string()),
             Some(name) if !path.ends_with(name) => Some(format!("{path}.{name}")),
@@ -168,6 +196,25 @@ mod tests {
         assert_eq!(json(parse_params(b" {\"stages\": []} ").unwrap()), json(PipelineParams::default()));
         let p = parse_params(br#"{"load": {"max_triangles": 7}}"#).unwrap();
         assert_eq!((p.load.max_triangles, p.load.weld_tolerance), (7, 1e-6));
+    }
+
+    #[test]
+    fn only_a_json_object_is_accepted() {
+        for (json, got) in [
+            (&b"[[\"crossfield\"]]"[..], "an array"),
+            (b" [] ", "an array"),
+            (b"1", "a number"),
+            (b"\"x\"", "a string"),
+            (b"null", "null"),
+            (b"true", "a boolean"),
+        ] {
+            let e = parse_params(json).unwrap_err();
+            assert_eq!(e.message, format!("parameters must be a JSON object, got {got}"), "{e:?}");
+            assert!(!e.syntax && e.field.is_none(), "{e:?}");
+        }
+        assert!(parse_params(b"[\"crossfield\"").unwrap_err().syntax);
+        assert!(parse_params(b"").unwrap_err().syntax);
+        assert!(parse_params(b"\n\t{}").is_ok());
     }
 
     #[test]
