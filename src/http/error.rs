@@ -78,6 +78,7 @@ const KINDS: &[(&str, StatusCode, &str)] = &[
     ("invalid-params", StatusCode::UNPROCESSABLE_ENTITY, "Invalid pipeline parameters"),
     ("queue-full", StatusCode::TOO_MANY_REQUESTS, "Job queue full"),
     ("service-unavailable", StatusCode::SERVICE_UNAVAILABLE, "Service unavailable"),
+    ("insufficient-storage", StatusCode::INSUFFICIENT_STORAGE, "The server's storage is full or read-only"),
     // Job failures caused by the input (reader errors and limits).
     ("truncated", StatusCode::UNPROCESSABLE_ENTITY, "Truncated mesh file"),
     ("parse-error", StatusCode::UNPROCESSABLE_ENTITY, "Mesh file does not parse"),
@@ -96,6 +97,9 @@ const KINDS: &[(&str, StatusCode, &str)] = &[
     ("open-surface", StatusCode::UNPROCESSABLE_ENTITY, "The surface is not closed, so it encloses no volume"),
     ("invalid-target-size", StatusCode::UNPROCESSABLE_ENTITY, "The volume target size gives no or too many tetrahedra"),
     ("time-limit-exceeded", StatusCode::UNPROCESSABLE_ENTITY, "Job time limit exceeded"),
+    // Job failures caused by the server's storage (full disk, read-only).
+    ("storage-full", StatusCode::INSUFFICIENT_STORAGE, "The server's storage was full"),
+    ("storage-unavailable", StatusCode::SERVICE_UNAVAILABLE, "The server's storage did not accept writes"),
     ("interrupted", StatusCode::SERVICE_UNAVAILABLE, "Job interrupted repeatedly"),
     ("internal-error", StatusCode::INTERNAL_SERVER_ERROR, "Internal server error"),
 ];
@@ -151,6 +155,25 @@ impl ApiError {
         self.0.kind
     }
 
+    /// The server's storage refused a write: `insufficient-storage` (507)
+    /// for a full or read-only disk, else an internal error; `cause` is logged.
+    pub fn storage(kind: Option<&str>, cause: impl std::fmt::Display) -> Self {
+        if kind.is_none() {
+            return Self::internal(cause);
+        }
+        let mut e = Self::new(
+            "insufficient-storage",
+            "the server's storage is full or read-only, so the request could not be stored; retry later",
+        );
+        e.0.cause = Some(cause.to_string());
+        e
+    }
+
+    /// An I/O error of the data directory ([`ApiError::storage`]).
+    pub fn io(what: &str, e: &std::io::Error) -> Self {
+        Self::storage(crate::pipeline::error::storage_kind(e), format!("{what}: {e}"))
+    }
+
     /// Invalid pipeline parameters (422), or not JSON at all (400).
     pub fn params(e: ParamsError) -> Self {
         let kind = if e.syntax { "invalid-json" } else { "invalid-params" };
@@ -190,7 +213,9 @@ impl ApiError {
 
     /// The problem body (with the current request id).
     fn body(&self, request_id: &str) -> Value {
-        let detail = if self.0.status.is_server_error() {
+        // Server errors are generic, except those whose detail is our own text.
+        let generic = self.0.status.is_server_error() && !matches!(self.0.kind, "insufficient-storage" | "service-unavailable");
+        let detail = if generic {
             format!("the server could not complete the request; quote request id {request_id} when reporting it")
         } else {
             self.0.detail.clone()
@@ -201,7 +226,7 @@ impl ApiError {
         obj.insert("status".into(), Value::from(self.0.status.as_u16()));
         obj.insert("detail".into(), Value::String(detail));
         obj.insert("request_id".into(), Value::String(request_id.into()));
-        if !self.0.status.is_server_error() {
+        if !generic {
             for (k, v) in &self.0.extra {
                 obj.insert(k.clone(), v.clone());
             }
@@ -249,7 +274,7 @@ impl From<JobsError> for ApiError {
                 "queue-full",
                 format!("the job queue is full ({max_queued} jobs waiting); retry after the Retry-After delay"),
             ),
-            other => Self::internal(other),
+            other => Self::storage(crate::jobs::storage::jobs_error_kind(&other), other),
         }
     }
 }

@@ -236,9 +236,16 @@ pub async fn cancel_job(State(st): State<AppState>, Path(id): Path<String>) -> R
 }
 
 /// `DELETE /v1/jobs/{id}`: cancel if running, then remove record and files.
-pub async fn delete_job(State(st): State<AppState>, Path(id): Path<String>) -> Result<StatusCode, ApiError> {
-    st.jobs.delete(parse_id(&id)?).await?;
-    Ok(StatusCode::NO_CONTENT)
+/// When some of the job's files could not be removed, the record is gone
+/// all the same and the answer is 200 with `not_removed` (paths relative to
+/// the data directory).
+pub async fn delete_job(State(st): State<AppState>, Path(id): Path<String>) -> Result<Response, ApiError> {
+    let id = parse_id(&id)?;
+    let not_removed = st.jobs.delete(id).await?;
+    if not_removed.is_empty() {
+        return Ok(StatusCode::NO_CONTENT.into_response());
+    }
+    Ok((StatusCode::OK, Json(json!({"id": id, "deleted": true, "not_removed": not_removed}))).into_response())
 }
 
 /// `GET /v1/jobs/{id}/artifacts/{name}`: the file, with Range support.
@@ -269,6 +276,11 @@ pub async fn healthz(State(st): State<AppState>) -> Result<Json<Value>, ApiError
     st.jobs.health().await.map_err(|e| {
         ApiError::new("service-unavailable", "the job store does not answer").with("cause", e.to_string())
     })?;
+    let problems = st.jobs.storage_problems().await;
+    if !problems.is_empty() {
+        return Err(ApiError::new("service-unavailable", format!("the store is not writable: {}", problems.join("; ")))
+            .with("problems", problems));
+    }
     Ok(Json(json!({"status": "ok", "version": env!("CARGO_PKG_VERSION")})))
 }
 

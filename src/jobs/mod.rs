@@ -18,6 +18,7 @@ pub mod model;
 pub mod pipeline_executor;
 pub mod runner;
 pub mod service;
+pub mod storage;
 pub mod store;
 
 pub use executor::{Delayed, ExecError, Executor, JobInput, JobOutcome};

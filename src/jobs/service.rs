@@ -101,7 +101,13 @@ impl JobService {
             wake: Condvar::new(),
             shutdown: AtomicBool::new(false),
             metrics: Metrics::default(),
+            unrecorded: Mutex::new(Vec::new()),
         });
+        let r = inner.clone();
+        std::thread::Builder::new()
+            .name("meshatlas-recorder".into())
+            .spawn(move || super::runner::recorder_loop(r))
+            .map_err(|e| JobsError::Internal(format!("cannot start the recorder: {e}")))?;
         let d = inner.clone();
         std::thread::Builder::new()
             .name("meshatlas-dispatcher".into())
@@ -223,6 +229,9 @@ impl JobService {
             job.stop(why);
             return Ok(true);
         }
+        if super::runner::stop_unrecorded(inner, id, why) {
+            return Ok(false);
+        }
         match why {
             StopReason::Delete => {
                 if !inner.store.delete(id)? {
@@ -260,11 +269,12 @@ impl JobService {
         self.get(id).await
     }
 
-    /// Cancels the job if needed and removes its record and files.
+    /// Cancels the job if needed and removes its record and files. Returns
+    /// the paths (relative to the data directory) that could not be removed.
     ///
     /// # Errors
     /// [`JobsError::NotFound`], or storage errors.
-    pub async fn delete(&self, id: JobId) -> Result<(), JobsError> {
+    pub async fn delete(&self, id: JobId) -> Result<Vec<String>, JobsError> {
         let was_running = self.blocking(move |inner| Self::stop(inner, id, StopReason::Delete)).await?;
         if was_running {
             self.wait_stopped(id).await;
@@ -274,13 +284,9 @@ impl JobService {
             })
             .await?;
         }
-        self.blocking(move |inner| {
-            remove_job_dir(&inner.config, id);
-            Ok(())
-        })
-        .await?;
-        info!(job = %id, "job deleted");
-        Ok(())
+        let not_removed = self.blocking(move |inner| Ok(super::runner::remove_job_dir_reporting(&inner.config, id))).await?;
+        info!(job = %id, not_removed = not_removed.len(), "job deleted");
+        Ok(not_removed)
     }
 
     /// Path of a finished job's artifact, if the job lists it.
@@ -329,6 +335,24 @@ impl JobService {
             Ok(())
         })
         .await
+    }
+
+    /// Checks that the data directory and the database take a write (a small
+    /// file in `tmp/`, a one-page database transaction). Returns what failed
+    /// (empty when both write).
+    pub async fn storage_problems(&self) -> Vec<String> {
+        let probed = self.blocking(|inner| {
+            let mut problems = Vec::new();
+            if let Err(e) = super::storage::probe_data_dir(&inner.config.data_dir) {
+                problems.push(e);
+            }
+            if let Err(e) = inner.store.probe_write() {
+                let kind = super::storage::store_error_kind(&e).map(|k| format!(" ({k})")).unwrap_or_default();
+                problems.push(format!("the job database does not take a write{kind}: {e}"));
+            }
+            Ok(problems)
+        });
+        probed.await.unwrap_or_else(|e| vec![e.to_string()])
     }
 
     /// Stops the dispatcher and asks running jobs to stop; they go back to
