@@ -106,3 +106,34 @@ pub fn probe_data_dir(data_dir: &Path) -> Result<(), String> {
         format!("the data directory does not take a file{kind}: {e}")
     })
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn full_and_read_only_errors_have_storage_kinds() {
+        let os = |code| std::io::Error::from_raw_os_error(code);
+        assert_eq!(storage_kind(&os(28)), Some(STORAGE_FULL)); // ENOSPC
+        assert_eq!(storage_kind(&os(122)), Some(STORAGE_FULL)); // EDQUOT
+        assert_eq!(storage_kind(&os(30)), Some(STORAGE_UNAVAILABLE)); // EROFS
+        assert_eq!(storage_kind(&os(2)), None); // ENOENT
+        let sqlite = |code| {
+            StoreError::Sqlite(rusqlite::Error::SqliteFailure(rusqlite::ffi::Error::new(code), None))
+        };
+        assert_eq!(store_error_kind(&sqlite(rusqlite::ffi::SQLITE_FULL)), Some(STORAGE_FULL));
+        assert_eq!(store_error_kind(&sqlite(rusqlite::ffi::SQLITE_READONLY)), Some(STORAGE_UNAVAILABLE));
+        assert_eq!(store_error_kind(&sqlite(rusqlite::ffi::SQLITE_CONSTRAINT)), None);
+        let e = JobsError::Io { what: "x".into(), source: os(28) };
+        assert_eq!(jobs_error_kind(&e), Some(STORAGE_FULL));
+    }
+
+    #[test]
+    fn probe_fails_without_a_tmp_directory_and_passes_with_one() {
+        let dir = tempfile::tempdir().unwrap();
+        assert!(probe_data_dir(dir.path()).is_err());
+        std::fs::create_dir(dir.path().join("tmp")).unwrap();
+        probe_data_dir(dir.path()).unwrap();
+        assert_eq!(std::fs::read_dir(dir.path().join("tmp")).unwrap().count(), 0, "the probe file is removed");
+    }
+}
