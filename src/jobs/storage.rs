@@ -118,9 +118,7 @@ mod tests {
         assert_eq!(storage_kind(&os(122)), Some(STORAGE_FULL)); // EDQUOT
         assert_eq!(storage_kind(&os(30)), Some(STORAGE_UNAVAILABLE)); // EROFS
         assert_eq!(storage_kind(&os(2)), None); // ENOENT
-        let sqlite = |code| {
-            StoreError::Sqlite(rusqlite::Error::SqliteFailure(rusqlite::ffi::Error::new(code), None))
-        };
+        let sqlite = |code| StoreError::Sqlite(rusqlite::Error::SqliteFailure(rusqlite::ffi::Error::new(code), None));
         assert_eq!(store_error_kind(&sqlite(rusqlite::ffi::SQLITE_FULL)), Some(STORAGE_FULL));
         assert_eq!(store_error_kind(&sqlite(rusqlite::ffi::SQLITE_READONLY)), Some(STORAGE_UNAVAILABLE));
         assert_eq!(store_error_kind(&sqlite(rusqlite::ffi::SQLITE_CONSTRAINT)), None);

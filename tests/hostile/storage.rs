@@ -125,6 +125,29 @@ async fn job_whose_end_cannot_be_written_fails_with_a_storage_kind_once_space_is
 }
 
 #[tokio::test]
+async fn cancel_of_a_job_stuck_on_a_full_disk_answers_and_takes_effect_once_space_is_freed() {
+    let Some(fs) = Tmpfs::mount() else { return };
+    let s = Server::start_in(&fs.dir, &[], &[]);
+    let params = r#"{"stages":["atlas","crossfield"]}"#;
+    let resp = s.submit_file(&shared_data("gmsh/torus_20k.stl"), Some(params)).await;
+    assert_eq!(resp.status(), 202);
+    let id = resp.json::<serde_json::Value>().await.unwrap()["id"].as_str().unwrap().to_string();
+    s.wait_for(&id, Duration::from_secs(20), |j| j["state"] == "running").await;
+    let filler = fs.fill();
+    wait_log(&s, "job failed", Duration::from_secs(25));
+    let start = Instant::now();
+    let r = s.client.post(s.url(&format!("/v1/jobs/{id}/cancel"))).send().await.unwrap();
+    assert!(start.elapsed() < Duration::from_secs(10), "cancel took {:?}", start.elapsed());
+    assert!(matches!(r.status().as_u16(), 200 | 507), "cancel answered {}", r.status());
+    std::fs::remove_file(&filler).unwrap();
+    let j = s.wait_final(&id, Duration::from_secs(15)).await;
+    // Cancelled when the cancel came while the end was being retried;
+    // failed when the store had already taken the failure.
+    let ok = j["state"] == "cancelled" || j["error"]["type"] == "urn:meshatlas:problem:storage-full";
+    assert!(ok, "{j:#}");
+}
+
+#[tokio::test]
 async fn submission_on_a_full_disk_answers_507_problem_json() {
     let Some(fs) = Tmpfs::mount() else { return };
     let s = Server::start_in(&fs.dir, &[], &[]);
