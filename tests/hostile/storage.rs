@@ -201,3 +201,27 @@ async fn time_limited_job_leaves_no_partial_artifacts() {
     let out = s.data_dir.join("jobs").join(&id).join("out");
     assert!(files_under(&out).is_empty(), "partial artifacts left: {:?}", files_under(&out));
 }
+
+#[tokio::test]
+async fn delete_reports_files_it_could_not_remove() {
+    let s = Server::start(&[]);
+    let resp = s.submit_file(&shared_data("gmsh/sphere_tiny.stl"), Some(r#"{"stages":[]}"#)).await;
+    assert_eq!(resp.status(), 202);
+    let id = resp.json::<serde_json::Value>().await.unwrap()["id"].as_str().unwrap().to_string();
+    assert_eq!(s.wait_final(&id, Duration::from_secs(20)).await["state"], "succeeded");
+    // A read-only file system over the job's `out/` keeps its file from being removed.
+    let out = s.data_dir.join("jobs").join(&id).join("out");
+    let Some(ro) = Tmpfs::mount_at(tempfile::tempdir().unwrap(), out.clone(), "size=1m") else { return };
+    std::fs::write(out.join("stuck.txt"), b"x").unwrap();
+    ro.remount(true);
+    let r = s.client.delete(s.url(&format!("/v1/jobs/{id}"))).send().await.unwrap();
+    let status = r.status().as_u16();
+    let body: serde_json::Value = r.json().await.unwrap_or_default();
+    drop(ro);
+    assert_eq!(status, 200, "{body:#}");
+    let left: Vec<&str> = body["not_removed"].as_array().unwrap().iter().filter_map(|v| v.as_str()).collect();
+    assert!(left.contains(&format!("jobs/{id}/out/stuck.txt").as_str()), "{body:#}");
+    assert!(left.iter().all(|p| !p.starts_with('/')), "paths must be relative: {body:#}");
+    let gone = s.client.get(s.url(&format!("/v1/jobs/{id}"))).send().await.unwrap();
+    assert_eq!(gone.status(), 404, "the record is removed all the same");
+}
