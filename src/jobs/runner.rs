@@ -486,6 +486,11 @@ fn record_ending(inner: &Inner, id: JobId, job: &RunningJob, mut ending: Ending)
             Ok(state) => return state,
             Err(e) => e,
         };
+        if matches!(ending, Ending::Requeue) && inner.shutdown.load(Ordering::Relaxed) {
+            // Left `running`: the next start's recovery puts it back in the queue.
+            error!(error = %err, "cannot put the job back in the queue");
+            return None;
+        }
         if start.elapsed() >= storage::RECORD_RETRY || inner.shutdown.load(Ordering::Relaxed) {
             let kind = storage::store_error_kind(&err).unwrap_or(storage::STORAGE_UNAVAILABLE);
             error!(error = %err, kind, "cannot record the end of the job; it waits in the unrecorded list");
