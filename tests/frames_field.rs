@@ -158,7 +158,7 @@ fn direct_and_iterative_solvers_give_the_same_field() {
 fn open_surface_fails_with_its_loops() {
     let err = compute_frame_field(&fixtures::cylinder(1.0, 1.0, 12, 3), None, &FramesOptions::default(), &Progress::none()).unwrap_err();
     match &err {
-        FramesError::OpenSurface { loops } => assert_eq!(loops.len(), 2),
+        FramesError::OpenSurface { loops, .. } => assert_eq!(loops.len(), 2),
         other => panic!("{other:?}"),
     }
     assert!(err.to_string().contains("boundary loop"));

@@ -28,6 +28,15 @@ fn describe_loops(loops: &[OpenLoop]) -> String {
     s
 }
 
+/// The note on non-manifold edges of an open surface (empty when none).
+fn describe_nonmanifold(n: usize) -> String {
+    if n == 0 {
+        String::new()
+    } else {
+        format!(" and is non-manifold: {n} edge(s) shared by three or more triangles")
+    }
+}
+
 /// Why the frame field could not be computed.
 #[derive(Debug, Clone, PartialEq, Error)]
 pub enum FramesError {
@@ -35,10 +44,14 @@ pub enum FramesError {
     #[error("the surface has no triangles: there is no volume to fill")]
     EmptySurface,
     /// The surface is not closed, so it encloses no volume.
-    #[error("the surface is not closed (it has {} boundary loop(s)), so it encloses no volume; close these holes: {}", .loops.len(), describe_loops(.loops))]
+    #[error("the surface is not closed (it has {} boundary loop(s){}), so it encloses no volume; close these holes: {}", .loops.len(), describe_nonmanifold(*.n_nonmanifold_edges), describe_loops(.loops))]
     OpenSurface {
-        /// The boundary loops found.
+        /// The boundary loops found (connected pieces of the boundary-edge
+        /// graph, as repair counts them).
         loops: Vec<OpenLoop>,
+        /// Edges shared by three or more triangles (not boundary, but they
+        /// also keep the surface from enclosing a volume).
+        n_nonmanifold_edges: usize,
     },
     /// The surface fails its invariants (index out of range, non-finite
     /// coordinate, repeated vertex).

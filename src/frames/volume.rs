@@ -23,7 +23,7 @@ use super::stuffing::{StuffedVolume, StuffingParams, isosurface_stuffing_cancell
 use crate::progress::Progress;
 use crate::fem::tet_p1::tet_p1_gradients;
 use crate::geom::Vec3;
-use crate::mesh::boundary::boundary_loops;
+use crate::mesh::boundary::boundary_pieces;
 use crate::mesh::{TetMesh, Topology, TriMesh};
 use rayon::prelude::*;
 use serde::Serialize;
@@ -78,15 +78,21 @@ pub fn check_closed(surface: &TriMesh) -> Result<(), FramesError> {
         return Err(FramesError::EmptySurface);
     }
     let topo = Topology::new(surface);
-    let loops = boundary_loops(surface, &topo);
-    if loops.is_empty() {
+    // The same pieces repair counts as `n_boundary_loops`.
+    let pieces = boundary_pieces(&topo);
+    if pieces.is_empty() {
         return Ok(());
     }
     Err(FramesError::OpenSurface {
-        loops: loops
+        loops: pieces
             .iter()
-            .map(|l| OpenLoop { n_edges: l.edges.len(), first_vertices: l.vertices.iter().take(5).map(|v| v.0).collect(), length: l.length(surface) })
+            .map(|l| OpenLoop {
+                n_edges: l.edges.len(),
+                first_vertices: l.vertices.iter().take(5).map(|v| v.0).collect(),
+                length: l.length(surface, &topo),
+            })
             .collect(),
+        n_nonmanifold_edges: topo.n_nonmanifold_edges(),
     })
 }
 
@@ -350,16 +356,33 @@ mod tests {
     fn open_surface_names_its_loops() {
         let cyl = fixtures::cylinder(1.0, 2.0, 16, 4);
         match check_closed(&cyl) {
-            Err(FramesError::OpenSurface { loops }) => {
+            Err(FramesError::OpenSurface { loops, n_nonmanifold_edges: 0 }) => {
                 assert_eq!(loops.len(), 2);
                 assert!(loops.iter().all(|l| l.n_edges == 16 && (l.length - 16.0 * 2.0 * (std::f64::consts::PI / 16.0).sin()).abs() < 1e-9));
-                let msg = FramesError::OpenSurface { loops }.to_string();
+                let msg = FramesError::OpenSurface { loops, n_nonmanifold_edges: 0 }.to_string();
                 assert!(msg.contains("2 boundary loop") && msg.contains("16 edges"), "{msg}");
             }
             other => panic!("expected OpenSurface, got {other:?}"),
         }
         assert!(check_closed(&fixtures::icosphere(1)).is_ok());
         assert_eq!(check_closed(&TriMesh::default()), Err(FramesError::EmptySurface));
+    }
+
+    #[test]
+    fn open_surface_counts_loops_like_repair_on_fin_and_moebius() {
+        use crate::mesh::boundary::tests::{fin, moebius};
+        for (m, nm) in [(fin(), 1), (moebius(12), 0)] {
+            let repair = crate::mesh::summary::topology_summary(&m, &Topology::new(&m)).n_boundary_loops;
+            match check_closed(&m) {
+                Err(FramesError::OpenSurface { loops, n_nonmanifold_edges }) => {
+                    assert_eq!((loops.len(), repair, n_nonmanifold_edges), (1, 1, nm));
+                    let msg = FramesError::OpenSurface { loops, n_nonmanifold_edges }.to_string();
+                    assert!(msg.contains("1 boundary loop"), "{msg}");
+                    assert_eq!(msg.contains("non-manifold"), nm > 0, "{msg}");
+                }
+                other => panic!("expected OpenSurface, got {other:?}"),
+            }
+        }
     }
 
     #[test]

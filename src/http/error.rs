@@ -102,6 +102,9 @@ const KINDS: &[(&str, StatusCode, &str)] = &[
     ("open-surface", StatusCode::UNPROCESSABLE_ENTITY, "The surface is not closed, so it encloses no volume"),
     ("invalid-target-size", StatusCode::UNPROCESSABLE_ENTITY, "The volume target size gives no or too many tetrahedra"),
     ("time-limit-exceeded", StatusCode::UNPROCESSABLE_ENTITY, "Job time limit exceeded"),
+    // Job failures caused by the server's storage (full disk, read-only).
+    ("storage-full", StatusCode::INSUFFICIENT_STORAGE, "The server's storage was full"),
+    ("storage-unavailable", StatusCode::SERVICE_UNAVAILABLE, "The server's storage did not accept writes"),
     ("interrupted", StatusCode::SERVICE_UNAVAILABLE, "Job interrupted repeatedly"),
     ("crashed-server", StatusCode::UNPROCESSABLE_ENTITY, "Job stopped the server twice"),
     ("internal-error", StatusCode::INTERNAL_SERVER_ERROR, "Internal server error"),
@@ -158,7 +161,9 @@ impl ApiError {
 
     /// True when the body must be generic and the cause logged as an error.
     fn is_hidden(&self) -> bool {
-        self.0.status.is_server_error() && !self.0.expose
+        // Storage refusals and an unhealthy store carry our own text, never a cause.
+        let own_text = matches!(self.0.kind, "insufficient-storage" | "service-unavailable");
+        self.0.status.is_server_error() && !self.0.expose && !own_text
     }
 
     /// The HTTP status of this error.
@@ -169,6 +174,25 @@ impl ApiError {
     /// The stable kind (suffix of `type`).
     pub fn kind(&self) -> &'static str {
         self.0.kind
+    }
+
+    /// The server's storage refused a write: `insufficient-storage` (507)
+    /// for a full or read-only disk, else an internal error; `cause` is logged.
+    pub fn storage(kind: Option<&str>, cause: impl std::fmt::Display) -> Self {
+        if kind.is_none() {
+            return Self::internal(cause);
+        }
+        let mut e = Self::new(
+            "insufficient-storage",
+            "the server's storage is full or read-only, so the request could not be stored; retry later",
+        );
+        e.0.cause = Some(cause.to_string());
+        e
+    }
+
+    /// An I/O error of the data directory ([`ApiError::storage`]).
+    pub fn io(what: &str, e: &std::io::Error) -> Self {
+        Self::storage(crate::pipeline::error::storage_kind(e), format!("{what}: {e}"))
     }
 
     /// Invalid pipeline parameters (422), or not JSON at all (400).
@@ -290,7 +314,7 @@ impl From<JobsError> for ApiError {
             .with("max_stored_bytes", max_bytes)
             .with("quota", if tenant { "tenant" } else { "server" })
             .exposed(),
-            other => Self::internal(other),
+            other => Self::storage(crate::jobs::storage::jobs_error_kind(&other), other),
         }
     }
 }

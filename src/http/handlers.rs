@@ -279,16 +279,24 @@ pub async fn cancel_job(
 
 /// `DELETE /v1/jobs/{id}`: cancel if running, then remove record and files.
 /// 204 once gone; 202 with the job (`stop_requested`) while the running job
-/// has not stopped yet (its files go when it does).
+/// has not stopped yet (its files go when it does). When some of the job's
+/// files could not be removed, the record is gone all the same and the answer
+/// is 200 with `not_removed` (paths relative to the data directory).
 pub async fn delete_job(
     State(st): State<AppState>,
     scope: Scope,
     Path(id): Path<String>,
 ) -> Result<Response, ApiError> {
-    match st.jobs.delete(visible_id(&st, &scope, &id).await?).await? {
-        None => Ok(StatusCode::NO_CONTENT.into_response()),
-        Some(rec) => Ok((StatusCode::ACCEPTED, Json(job_json(&rec))).into_response()),
+    let id = visible_id(&st, &scope, &id).await?;
+    let deletion = st.jobs.delete(id).await?;
+    if let Some(rec) = deletion.pending {
+        return Ok((StatusCode::ACCEPTED, Json(job_json(&rec))).into_response());
     }
+    if deletion.not_removed.is_empty() {
+        return Ok(StatusCode::NO_CONTENT.into_response());
+    }
+    let body = json!({"id": id, "deleted": true, "not_removed": deletion.not_removed});
+    Ok((StatusCode::OK, Json(body)).into_response())
 }
 
 /// Serves the file at `path` for `req`, with `range` (canonical, from
@@ -359,6 +367,11 @@ pub async fn healthz(State(st): State<AppState>) -> Result<Json<Value>, ApiError
     st.jobs.health().await.map_err(|e| {
         ApiError::new("service-unavailable", "the job store does not answer").with("cause", e.to_string())
     })?;
+    let problems = st.jobs.storage_problems().await;
+    if !problems.is_empty() {
+        return Err(ApiError::new("service-unavailable", format!("the store is not writable: {}", problems.join("; ")))
+            .with("problems", problems));
+    }
     Ok(Json(json!({"status": "ok", "version": env!("CARGO_PKG_VERSION")})))
 }
 

@@ -127,7 +127,7 @@ async fn stream_to_file<E: std::fmt::Display>(
 ) -> Result<(), ApiError> {
     let mut file = tokio::fs::File::create(&upload.path)
         .await
-        .map_err(|e| ApiError::internal(format!("cannot create {}: {e}", upload.path.display())))?;
+        .map_err(|e| ApiError::io(&format!("cannot create {}", upload.path.display()), &e))?;
     while let Some(chunk) = stream.next().await {
         let chunk =
             chunk.map_err(|e| ApiError::new("upload-interrupted", format!("reading the upload failed: {e}")))?;
@@ -140,9 +140,9 @@ async fn stream_to_file<E: std::fmt::Display>(
             let take = (HEAD_BYTES - upload.head.len()).min(chunk.len());
             upload.head.extend_from_slice(&chunk[..take]);
         }
-        file.write_all(&chunk).await.map_err(|e| ApiError::internal(format!("writing the upload: {e}")))?;
+        file.write_all(&chunk).await.map_err(|e| ApiError::io("writing the upload", &e))?;
     }
-    file.sync_all().await.map_err(|e| ApiError::internal(format!("syncing the upload: {e}")))?;
+    file.sync_all().await.map_err(|e| ApiError::io("syncing the upload", &e))?;
     Ok(())
 }
 

@@ -277,7 +277,20 @@ fn read_header<R: BufRead>(src: &mut Source<R>) -> Result<Header, IoError> {
 pub struct NodeTable {
     /// Tag of each vertex, in reading order.
     tags: Vec<u64>,
+    /// Where each vertex was read (for errors naming both copies of a tag).
+    at: Vec<Location>,
     lookup: Lookup,
+}
+
+/// A node tag defined twice; the places of its first and second definition.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct DuplicateTag {
+    /// The tag.
+    pub tag: u64,
+    /// Vertex index and place of the first node with the tag.
+    pub first: (u32, Location),
+    /// Vertex index and place of the later node with the tag.
+    pub second: (u32, Location),
 }
 
 /// Tag → index lookup, rebuilt when nodes are added.
@@ -294,23 +307,39 @@ enum Lookup {
 
 impl NodeTable {
     /// Record that vertex `index` has tag `tag`.
-    pub fn push(&mut self, tag: u64, index: u32) {
+    pub fn push(&mut self, tag: u64, index: u32, at: Location) {
         debug_assert_eq!(index as usize, self.tags.len());
         self.tags.push(tag);
+        self.at.push(at);
         self.lookup = Lookup::None;
     }
 
     /// Reserve room for `n` more tags.
     pub fn reserve(&mut self, n: usize) {
         self.tags.reserve(n);
+        self.at.reserve(n);
     }
 
     /// Build the lookup if needed; returns the number of duplicate tags
-    /// (the first node with a tag wins, as in Gmsh).
-    pub fn build(&mut self) -> usize {
+    /// whose nodes `same(first, second)` accepts as one (the first node with
+    /// a tag wins, as in Gmsh).
+    ///
+    /// # Errors
+    /// The first duplicate tag whose two nodes `same` rejects.
+    pub fn build(&mut self, same: impl Fn(u32, u32) -> bool) -> Result<usize, DuplicateTag> {
         if !matches!(self.lookup, Lookup::None) || self.tags.is_empty() {
-            return 0;
+            return Ok(0);
         }
+        let dup = |tags: &[u64], at: &[Location], first: u32, second: usize| -> Result<(), DuplicateTag> {
+            if same(first, second as u32) {
+                return Ok(());
+            }
+            Err(DuplicateTag {
+                tag: tags[second],
+                first: (first, at[first as usize]),
+                second: (second as u32, at[second]),
+            })
+        };
         let (min, max) = self.tags.iter().fold((u64::MAX, 0), |(lo, hi), &t| (lo.min(t), hi.max(t)));
         let n = self.tags.len() as u64;
         let mut duplicates = 0;
@@ -321,6 +350,7 @@ impl NodeTable {
                 if *slot == u32::MAX {
                     *slot = i as u32;
                 } else {
+                    dup(&self.tags, &self.at, *slot, i)?;
                     duplicates += 1;
                 }
             }
@@ -329,7 +359,10 @@ impl NodeTable {
             let mut map = foldhash::HashMap::with_capacity_and_hasher(self.tags.len(), Default::default());
             for (i, &t) in self.tags.iter().enumerate() {
                 match map.entry(t) {
-                    std::collections::hash_map::Entry::Occupied(_) => duplicates += 1,
+                    std::collections::hash_map::Entry::Occupied(o) => {
+                        dup(&self.tags, &self.at, *o.get(), i)?;
+                        duplicates += 1;
+                    }
                     std::collections::hash_map::Entry::Vacant(v) => {
                         v.insert(i as u32);
                     }
@@ -337,7 +370,7 @@ impl NodeTable {
             }
             self.lookup = Lookup::Sparse(map);
         }
-        duplicates
+        Ok(duplicates)
     }
 
     /// The vertex index of `tag` (after [`Self::build`]).
@@ -364,17 +397,40 @@ impl NodeTable {
     }
 }
 
-/// Build the node lookup before an `$Elements` section, counting duplicates.
+/// Build the node lookup before an `$Elements` section. A tag given twice
+/// with the same coordinates (bit for bit) is tolerated and counted as
+/// skipped (`duplicate node tag`; the first node wins, as in Gmsh); with
+/// different coordinates the file is ambiguous and refused.
 ///
 /// # Errors
-/// Elements before any node.
+/// Elements before any node; a tag defined twice with different coordinates
+/// (a parse error naming the tag and both places).
 pub fn prepare_nodes<R: BufRead>(src: &Source<R>, nodes: &mut NodeTable, sink: &mut MeshSink) -> Result<(), IoError> {
     if nodes.is_empty() {
         return Err(src.parse_error("`$Elements` before any `$Nodes`"));
     }
-    let dup = nodes.build();
-    sink.skip("duplicate node tag", dup);
-    Ok(())
+    let positions = &sink.mesh.positions;
+    let same = |a: u32, b: u32| positions.get(a as usize) == positions.get(b as usize);
+    match nodes.build(same) {
+        Ok(dup) => {
+            sink.skip("duplicate node tag", dup);
+            Ok(())
+        }
+        Err(d) => {
+            let p = |i: u32| positions.get(i as usize).map(|v| format!("({}, {}, {})", v.x, v.y, v.z)).unwrap_or_default();
+            Err(src.parse_error_at(
+                d.second.1,
+                format!(
+                    "node tag {} is defined twice with different coordinates: {} at {} and {} at {}",
+                    d.tag,
+                    p(d.first.0),
+                    d.first.1,
+                    p(d.second.0),
+                    d.second.1
+                ),
+            ))
+        }
+    }
 }
 
 /// Map the node tags of element `elem_tag` (at most 4) to vertex indices;
@@ -485,16 +541,28 @@ mod tests {
     fn node_table_dense_and_sparse() {
         let mut t = NodeTable::default();
         for (i, tag) in [5u64, 7, 6, 7].into_iter().enumerate() {
-            t.push(tag, i as u32);
+            t.push(tag, i as u32, Location::Line(i as u64 + 1));
         }
-        assert_eq!(t.build(), 1);
+        assert_eq!(t.build(|_, _| true), Ok(1));
         assert_eq!((t.get(5), t.get(6), t.get(7), t.get(8), t.get(1)), (Some(0), Some(2), Some(1), None, None));
         let mut t = NodeTable::default();
         for (i, tag) in [1u64, 1 << 40, 3, 1 << 40].into_iter().enumerate() {
-            t.push(tag, i as u32);
+            t.push(tag, i as u32, Location::Byte(10 * i as u64));
         }
-        assert_eq!(t.build(), 1);
+        assert_eq!(t.build(|_, _| true), Ok(1));
         assert_eq!((t.get(1 << 40), t.get(3), t.get(2)), (Some(1), Some(2), None));
+    }
+
+    #[test]
+    fn node_table_reports_a_rejected_duplicate_with_both_places() {
+        for tags in [[5u64, 7, 6, 7], [1, 1 << 40, 3, 1 << 40]] {
+            let mut t = NodeTable::default();
+            for (i, tag) in tags.into_iter().enumerate() {
+                t.push(tag, i as u32, Location::Line(i as u64 + 1));
+            }
+            let d = t.build(|_, _| false).unwrap_err();
+            assert_eq!(d, DuplicateTag { tag: tags[3], first: (1, Location::Line(2)), second: (3, Location::Line(4)) });
+        }
     }
 
     #[test]

@@ -24,6 +24,7 @@ pub mod quota;
 pub mod retention;
 pub mod runner;
 pub mod service;
+pub mod storage;
 pub mod store;
 
 pub use executor::{Delayed, ExecError, Executor, JobInput, JobOutcome, Stalled};
@@ -31,7 +32,7 @@ pub use model::{Artifact, JobError, JobId, JobPage, JobRecord, JobState, NewJob}
 pub use quota::Quotas;
 pub use retention::{Retention, parse_retention};
 pub use runner::JobsConfig;
-pub use service::{JobService, JobsError};
+pub use service::{Deletion, JobService, JobsError};
 pub use store::{Store, StoreError};
 
 /// Installs a panic hook that logs panics through `tracing` (with the

@@ -34,7 +34,8 @@ use crate::progress::{Progress, ProgressSink};
 use super::executor::{ExecError, Executor, JobInput, JobOutcome};
 use super::metrics::Metrics;
 use super::model::{Artifact, JobError, JobId, JobRecord, JobState};
-use super::store::{QueueHead, Store};
+use super::storage;
+use super::store::{QueueHead, Store, StoreError};
 
 /// Settings of the job service.
 #[derive(Debug, Clone)]
@@ -194,6 +195,8 @@ pub(crate) struct Inner {
     pub wake: Condvar,
     pub shutdown: AtomicBool,
     pub metrics: Metrics,
+    /// Jobs whose end could not be written yet (storage faults).
+    pub unrecorded: Mutex<Vec<storage::Unrecorded>>,
 }
 
 impl Inner {
@@ -359,7 +362,11 @@ fn run_job(inner: &Arc<Inner>, rec: JobRecord, job: &Arc<RunningJob>) {
     let result = match prepared {
         Err(e) => {
             error!(error = %e, dir = %out_dir.display(), "cannot prepare the output directory");
-            Ok(Err(ExecError::Failed(JobError::new("internal-error", "the server could not store the job's files"))))
+            let err = match crate::pipeline::error::storage_kind(&e) {
+                Some(kind) => storage::artifact_failure(kind),
+                None => JobError::new("internal-error", "the server could not store the job's files"),
+            };
+            Ok(Err(ExecError::Failed(err)))
         }
         Ok(()) => {
             let input = JobInput {
@@ -387,9 +394,24 @@ fn run_job(inner: &Arc<Inner>, rec: JobRecord, job: &Arc<RunningJob>) {
     inner.wake.notify_all();
 }
 
+/// How a job ended, as it is to be written to the store.
+enum Ending {
+    /// Deleted by a client: nothing to write (record and files go).
+    Deleted,
+    /// Server shutdown: back to the queue.
+    Requeue,
+    /// Cancelled by a client.
+    Cancelled,
+    /// Failed with this error.
+    Failed(JobError, BTreeMap<String, f64>),
+    /// Succeeded with this summary, timings and artifacts.
+    Succeeded(serde_json::Value, BTreeMap<String, f64>, Vec<Artifact>),
+}
+
 /// Stores the end of a job; returns its final state (`None` when it was
 /// deleted or put back in the queue). Metrics are counted before the final
 /// state is stored, so a client that sees the state also sees the metrics.
+/// A store that does not write is retried (see [`record_ending`]).
 fn record_result(
     inner: &Arc<Inner>,
     rec: &JobRecord,
@@ -399,93 +421,219 @@ fn record_result(
     live_seconds: BTreeMap<String, f64>,
     started: Instant,
 ) -> Option<JobState> {
-    let store = &inner.store;
-    let reason = job.reason();
-    let count = |state: JobState, secs: &BTreeMap<String, f64>| {
+    let ending = ending_of(inner, job.reason(), result, out_dir, live_seconds);
+    let state = match &ending {
+        Ending::Cancelled => Some(JobState::Cancelled),
+        Ending::Failed(..) => Some(JobState::Failed),
+        Ending::Succeeded(..) => Some(JobState::Succeeded),
+        Ending::Deleted | Ending::Requeue => None,
+    };
+    if let (Some(state), Ending::Failed(_, secs) | Ending::Succeeded(_, secs, _)) = (state, &ending) {
         inner.metrics.job_finished(state, started.elapsed().as_secs_f64(), secs);
-    };
-    let failed = |e: JobError, secs: &BTreeMap<String, f64>| {
-        count(JobState::Failed, secs);
-        match store.finish_failed(rec.id, &e, secs) {
-            Ok(true) => Some(JobState::Failed),
-            Ok(false) => None,
-            Err(err) => {
-                error!(error = %err, "cannot record the job failure");
-                None
-            }
-        }
-    };
-    let outcome = match (reason, result) {
-        (Some(StopReason::Delete), _) => {
-            remove_job_dir(&inner.config, rec.id);
-            return None;
-        }
-        (Some(StopReason::Shutdown), _) => {
-            if let Err(e) = store.requeue(rec.id) {
-                error!(error = %e, "cannot put the job back in the queue");
-            }
-            return None;
-        }
-        (Some(StopReason::Cancel), _) => {
-            count(JobState::Cancelled, &live_seconds);
-            return match store.cancel_if(rec.id, JobState::Running) {
-                Ok(true) => Some(JobState::Cancelled),
-                Ok(false) => None,
-                Err(e) => {
-                    error!(error = %e, "cannot record the cancellation");
-                    None
-                }
-            };
-        }
+    } else if let Some(state) = state {
+        inner.metrics.job_finished(state, started.elapsed().as_secs_f64(), &job.stage_seconds_now());
+    }
+    record_ending(inner, rec.id, job, ending)
+}
+
+/// Decides how a job ended from its stop reason and its executor's result.
+/// A time-limited job's partial artifacts are removed here; a job whose
+/// files could not be written (full or read-only storage) fails with the
+/// storage kind.
+fn ending_of(
+    inner: &Arc<Inner>,
+    reason: Option<StopReason>,
+    result: std::thread::Result<Result<JobOutcome, ExecError>>,
+    out_dir: &Path,
+    live_seconds: BTreeMap<String, f64>,
+) -> Ending {
+    match (reason, result) {
+        (Some(StopReason::Delete), _) => Ending::Deleted,
+        (Some(StopReason::Shutdown), _) => Ending::Requeue,
+        (Some(StopReason::Cancel), _) => Ending::Cancelled,
         (_, Err(payload)) => {
             inner.metrics.job_panicked();
             error!(panic = %panic_message(payload.as_ref()), "job panicked");
-            return failed(
+            Ending::Failed(
                 JobError::new("internal-error", "the job stopped because of an internal error; it has been logged"),
-                &live_seconds,
-            );
+                live_seconds,
+            )
         }
         (Some(StopReason::Timeout), Ok(Err(_))) => {
+            remove_partial_artifacts(out_dir);
             let limit = inner.config.job_timeout.as_secs_f64();
-            return failed(
+            Ending::Failed(
                 JobError::new(
                     "time-limit-exceeded",
                     format!("the job ran longer than the server's limit of {limit} s and was stopped"),
                 ),
-                &live_seconds,
-            );
+                live_seconds,
+            )
         }
         (_, Ok(Err(ExecError::Failed(e)))) => {
             info!(kind = %e.kind, detail = %e.detail, "job failed");
-            return failed(e, &live_seconds);
+            let e = if matches!(e.kind.as_str(), storage::STORAGE_FULL | storage::STORAGE_UNAVAILABLE) {
+                storage::artifact_failure(&e.kind)
+            } else {
+                e
+            };
+            Ending::Failed(e, live_seconds)
         }
-        (None, Ok(Err(ExecError::Cancelled))) => {
-            return failed(JobError::new("internal-error", "the job stopped without being asked to"), &live_seconds);
-        }
-        (_, Ok(Ok(outcome))) => outcome,
-    };
-    let artifacts = match artifacts_on_disk(out_dir, &outcome.artifacts) {
-        Ok(a) => a,
-        Err(e) => {
-            error!(error = %e, "cannot list the job's artifacts");
-            return failed(JobError::new("internal-error", "the server could not list the job's files"), &live_seconds);
-        }
-    };
-    let mut secs = outcome.stage_seconds.clone();
-    for (k, v) in live_seconds {
-        secs.entry(k).or_insert(v);
+        (None, Ok(Err(ExecError::Cancelled))) => Ending::Failed(
+            JobError::new("internal-error", "the job stopped without being asked to"),
+            live_seconds,
+        ),
+        (_, Ok(Ok(outcome))) => match artifacts_on_disk(out_dir, &outcome.artifacts) {
+            Ok(artifacts) => {
+                let mut secs = outcome.stage_seconds.clone();
+                for (k, v) in live_seconds {
+                    secs.entry(k).or_insert(v);
+                }
+                Ending::Succeeded(outcome.summary, secs, artifacts)
+            }
+            Err(e) => {
+                error!(error = %e, "cannot list the job's artifacts");
+                let err = match crate::pipeline::error::storage_kind(&e) {
+                    Some(kind) => storage::artifact_failure(kind),
+                    None => JobError::new("internal-error", "the server could not list the job's files"),
+                };
+                Ending::Failed(err, live_seconds)
+            }
+        },
     }
-    count(JobState::Succeeded, &secs);
-    match store.finish_succeeded(rec.id, &outcome.summary, &secs, &artifacts) {
-        Ok(true) => Some(JobState::Succeeded),
-        Ok(false) => {
-            remove_job_dir(&inner.config, rec.id);
+}
+
+/// Writes `ending` to the store once; the final state, `None` when there
+/// is none (deleted, requeued, or the job was no longer running).
+fn write_ending(inner: &Inner, id: JobId, ending: &Ending) -> Result<Option<JobState>, StoreError> {
+    let store = &inner.store;
+    Ok(match ending {
+        Ending::Deleted => {
+            remove_job_dir(&inner.config, id);
             None
         }
-        Err(e) => {
-            error!(error = %e, "cannot record the job result");
+        Ending::Requeue => {
+            store.requeue(id)?;
             None
         }
+        Ending::Cancelled => store.cancel_if(id, JobState::Running)?.then_some(JobState::Cancelled),
+        Ending::Failed(e, secs) => store.finish_failed(id, e, secs)?.then_some(JobState::Failed),
+        Ending::Succeeded(summary, secs, artifacts) => {
+            if store.finish_succeeded(id, summary, secs, artifacts)? {
+                Some(JobState::Succeeded)
+            } else {
+                remove_job_dir(&inner.config, id);
+                None
+            }
+        }
+    })
+}
+
+/// Writes `ending`, retrying with backoff for [`storage::RECORD_RETRY`]
+/// while the store fails (a full or read-only disk); a cancel or delete
+/// that arrives meanwhile replaces the ending. A job still unrecorded then
+/// goes to the unrecorded list, to be failed with the storage kind by
+/// [`flush_unrecorded`] once the store writes again.
+fn record_ending(inner: &Inner, id: JobId, job: &RunningJob, mut ending: Ending) -> Option<JobState> {
+    let start = Instant::now();
+    let mut pause = storage::FIRST_BACKOFF;
+    loop {
+        match (job.reason(), &ending) {
+            (_, Ending::Deleted | Ending::Requeue) => {}
+            (Some(StopReason::Delete), _) => ending = Ending::Deleted,
+            (Some(StopReason::Cancel), _) => ending = Ending::Cancelled,
+            _ => {}
+        }
+        let err = match write_ending(inner, id, &ending) {
+            Ok(state) => return state,
+            Err(e) => e,
+        };
+        if matches!(ending, Ending::Requeue) && inner.shutdown.load(Ordering::Relaxed) {
+            // Left `running`: the next start's recovery puts it back in the queue.
+            error!(error = %err, "cannot put the job back in the queue");
+            return None;
+        }
+        if start.elapsed() >= storage::RECORD_RETRY || inner.shutdown.load(Ordering::Relaxed) {
+            let kind = storage::store_error_kind(&err).unwrap_or(storage::STORAGE_UNAVAILABLE);
+            error!(error = %err, kind, "cannot record the end of the job; it waits in the unrecorded list");
+            let secs = match &ending {
+                Ending::Failed(_, s) | Ending::Succeeded(_, s, _) => s.clone(),
+                _ => job.stage_seconds_now(),
+            };
+            lock(&inner.unrecorded).push(storage::Unrecorded {
+                id,
+                error: storage::unrecorded_failure(kind),
+                stage_seconds: secs,
+                cancel: matches!(ending, Ending::Cancelled),
+                delete: matches!(ending, Ending::Deleted),
+            });
+            return None;
+        }
+        warn!(error = %err, retry_in_ms = pause.as_millis() as u64, "cannot record the end of the job; retrying");
+        std::thread::sleep(pause);
+        pause = (pause * 2).min(storage::MAX_BACKOFF);
+    }
+}
+
+/// Tries once to record every job of the unrecorded list (`failed` with its
+/// storage kind, or as the client asked meanwhile); keeps those the store
+/// still refuses. Called by the recorder thread.
+pub(crate) fn flush_unrecorded(inner: &Inner) {
+    let pending: Vec<storage::Unrecorded> = std::mem::take(&mut *lock(&inner.unrecorded));
+    let mut keep = Vec::new();
+    for u in pending {
+        let ending = if u.delete {
+            Ending::Deleted
+        } else if u.cancel {
+            Ending::Cancelled
+        } else {
+            Ending::Failed(u.error.clone(), u.stage_seconds.clone())
+        };
+        let written = match ending {
+            Ending::Deleted => inner.store.delete(u.id).map(|_| remove_job_dir(&inner.config, u.id)),
+            ref e => write_ending(inner, u.id, e).map(|_| ()),
+        };
+        match written {
+            Ok(()) => info!(job = %u.id, kind = %u.error.kind, "recorded the end of a job that could not be stored before"),
+            Err(_) => keep.push(u),
+        }
+    }
+    lock(&inner.unrecorded).extend(keep);
+}
+
+/// Marks a job of the unrecorded list for cancellation or deletion and
+/// tries to record it at once. Returns false when the job is not in the list.
+pub(crate) fn stop_unrecorded(inner: &Inner, id: JobId, why: StopReason) -> bool {
+    {
+        let mut list = lock(&inner.unrecorded);
+        let Some(u) = list.iter_mut().find(|u| u.id == id) else { return false };
+        match why {
+            StopReason::Delete => u.delete = true,
+            StopReason::Cancel => u.cancel = true,
+            _ => {}
+        }
+    }
+    flush_unrecorded(inner);
+    true
+}
+
+/// The recorder thread: flushes the unrecorded list until shutdown.
+pub(crate) fn recorder_loop(inner: Arc<Inner>) {
+    while !inner.shutdown.load(Ordering::Relaxed) {
+        std::thread::sleep(storage::FLUSH_INTERVAL);
+        if !lock(&inner.unrecorded).is_empty() {
+            flush_unrecorded(&inner);
+        }
+    }
+}
+
+/// Removes the files a stopped job left in its output directory (a job
+/// failed by the time limit keeps no partial artifacts).
+fn remove_partial_artifacts(out_dir: &Path) {
+    if let Err(e) = std::fs::remove_dir_all(out_dir)
+        && e.kind() != std::io::ErrorKind::NotFound
+    {
+        warn!(dir = %out_dir.display(), error = %e, "cannot remove the partial artifacts of a stopped job");
     }
 }
 
@@ -497,4 +645,25 @@ pub(crate) fn remove_job_dir(config: &JobsConfig, id: JobId) {
     {
         warn!(dir = %dir.display(), error = %e, "cannot remove job directory");
     }
+}
+
+/// Removes a job's directory like [`remove_job_dir`]; returns what is left
+/// of it (paths relative to the data directory, at most 100).
+pub(crate) fn remove_job_dir_reporting(config: &JobsConfig, id: JobId) -> Vec<String> {
+    remove_job_dir(config, id);
+    let mut left = Vec::new();
+    let mut stack = vec![config.job_dir(id)];
+    while let Some(p) = stack.pop() {
+        if left.len() >= 100 || std::fs::symlink_metadata(&p).is_err() {
+            continue;
+        }
+        if let Ok(rel) = p.strip_prefix(&config.data_dir) {
+            left.push(rel.to_string_lossy().into_owned());
+        }
+        if let Ok(rd) = std::fs::read_dir(&p) {
+            stack.extend(rd.flatten().map(|e| e.path()));
+        }
+    }
+    left.sort();
+    left
 }

@@ -86,6 +86,16 @@ fn io_err(what: impl Into<String>) -> impl FnOnce(std::io::Error) -> JobsError {
     move |source| JobsError::Io { what, source }
 }
 
+/// What [`JobService::delete`] did.
+#[derive(Debug, Clone, Default)]
+pub struct Deletion {
+    /// The job as it was, when it was still running after the wait: its
+    /// record is gone, its files go when it stops.
+    pub pending: Option<JobRecord>,
+    /// Paths (relative to the data directory) that could not be removed.
+    pub not_removed: Vec<String>,
+}
+
 /// Handle to the durable job service; cheap to clone.
 #[derive(Clone)]
 pub struct JobService {
@@ -136,7 +146,13 @@ impl JobService {
             wake: Condvar::new(),
             shutdown: AtomicBool::new(false),
             metrics: Metrics::default(),
+            unrecorded: Mutex::new(Vec::new()),
         });
+        let r = inner.clone();
+        std::thread::Builder::new()
+            .name("meshatlas-recorder".into())
+            .spawn(move || super::runner::recorder_loop(r))
+            .map_err(|e| JobsError::Internal(format!("cannot start the recorder: {e}")))?;
         let d = inner.clone();
         std::thread::Builder::new()
             .name("meshatlas-dispatcher".into())
@@ -318,6 +334,9 @@ impl JobService {
             job.stop(why);
             return Ok(true);
         }
+        if super::runner::stop_unrecorded(inner, id, why) {
+            return Ok(false);
+        }
         match why {
             StopReason::Delete => {
                 if !inner.store.delete(id)? {
@@ -357,12 +376,13 @@ impl JobService {
     }
 
     /// Cancels the job if needed and removes its record and files. Returns
-    /// the job as it was when it had not stopped within [`STOP_WAIT`] (its
-    /// files go when it stops), `None` when it is gone.
+    /// what happened: the job as it was when it had not stopped within
+    /// [`STOP_WAIT`] (its files go when it stops), and the paths (relative to
+    /// the data directory) that could not be removed.
     ///
     /// # Errors
     /// [`JobsError::NotFound`], or storage errors.
-    pub async fn delete(&self, id: JobId) -> Result<Option<JobRecord>, JobsError> {
+    pub async fn delete(&self, id: JobId) -> Result<Deletion, JobsError> {
         let was_running = self.blocking(move |inner| Self::stop(inner, id, StopReason::Delete)).await?;
         let mut pending = None;
         if was_running {
@@ -378,15 +398,13 @@ impl JobService {
             .await?;
         }
         // A job still running removes its own directory when it stops.
+        let mut not_removed = Vec::new();
         if pending.is_none() {
-            self.blocking(move |inner| {
-                remove_job_dir(&inner.config, id);
-                Ok(())
-            })
-            .await?;
+            not_removed =
+                self.blocking(move |inner| Ok(super::runner::remove_job_dir_reporting(&inner.config, id))).await?;
         }
-        info!(job = %id, "job deleted");
-        Ok(pending)
+        info!(job = %id, not_removed = not_removed.len(), "job deleted");
+        Ok(Deletion { pending, not_removed })
     }
 
     /// Path of a finished job's artifact, if the job lists it.
@@ -435,6 +453,24 @@ impl JobService {
             Ok(())
         })
         .await
+    }
+
+    /// Checks that the data directory and the database take a write (a small
+    /// file in `tmp/`, a one-page database transaction). Returns what failed
+    /// (empty when both write).
+    pub async fn storage_problems(&self) -> Vec<String> {
+        let probed = self.blocking(|inner| {
+            let mut problems = Vec::new();
+            if let Err(e) = super::storage::probe_data_dir(&inner.config.data_dir) {
+                problems.push(e);
+            }
+            if let Err(e) = inner.store.probe_write() {
+                let kind = super::storage::store_error_kind(&e).map(|k| format!(" ({k})")).unwrap_or_default();
+                problems.push(format!("the job database does not take a write{kind}: {e}"));
+            }
+            Ok(problems)
+        });
+        probed.await.unwrap_or_else(|e| vec![e.to_string()])
     }
 
     /// Stops the dispatcher and asks running jobs to stop; they go back to

@@ -649,6 +649,20 @@ impl Store {
         Ok(n == 1)
     }
 
+    /// Checks that the database takes a write (rewrites its `user_version`
+    /// in a transaction: one page, cheap).
+    ///
+    /// # Errors
+    /// [`StoreError::Sqlite`] when the write fails (disk full, read-only).
+    pub fn probe_write(&self) -> Result<(), StoreError> {
+        let mut conn = self.conn();
+        let tx = conn.transaction_with_behavior(rusqlite::TransactionBehavior::Immediate)?;
+        let v: i64 = tx.query_row("PRAGMA user_version", [], |r| r.get(0))?;
+        tx.pragma_update(None, "user_version", v)?;
+        tx.commit()?;
+        Ok(())
+    }
+
     /// Ids of every job (for cleaning orphaned directories at start-up).
     ///
     /// # Errors

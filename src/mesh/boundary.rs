@@ -89,22 +89,64 @@ pub fn boundary_loops_where(
     loops
 }
 
-/// Number of connected pieces of the boundary-edge graph.
-pub fn boundary_components(topo: &Topology) -> usize {
+/// One connected piece of the boundary-edge graph: what repair's
+/// `n_boundary_loops` and the frames stage's open-surface error count as a
+/// boundary loop. It needs no orientation, so it is the same on
+/// non-orientable surfaces (a Möbius strip has one), and an edge shared by
+/// three or more triangles is non-manifold, not boundary.
+#[derive(Debug, Clone, PartialEq)]
+pub struct BoundaryPiece {
+    /// Its boundary edges, by increasing id.
+    pub edges: Vec<EdgeId>,
+    /// Its vertices, in order of first appearance along `edges`.
+    pub vertices: Vec<VertexId>,
+}
+
+impl BoundaryPiece {
+    /// Total length of its edges in 3D.
+    pub fn length(&self, mesh: &TriMesh, topo: &Topology) -> f64 {
+        self.edges
+            .iter()
+            .map(|e| {
+                let [a, b] = topo.edges[e.idx()];
+                (mesh.position(b) - mesh.position(a)).norm()
+            })
+            .sum()
+    }
+}
+
+/// The connected pieces of the boundary-edge graph (edges with one
+/// triangle), in order of their smallest edge id.
+pub fn boundary_pieces(topo: &Topology) -> Vec<BoundaryPiece> {
     let mut sets = DisjointSets::new(topo.vertex_count_hint());
-    let mut touched = Vec::new();
-    for e in 0..topo.n_edges() {
-        let e = EdgeId::new(e);
-        if topo.is_boundary_edge(e) {
-            let [a, b] = topo.edges[e.idx()];
-            sets.union(a.0, b.0);
-            touched.push(a.0);
+    let boundary: Vec<EdgeId> = (0..topo.n_edges()).map(EdgeId::new).filter(|&e| topo.is_boundary_edge(e)).collect();
+    for &e in &boundary {
+        let [a, b] = topo.edges[e.idx()];
+        sets.union(a.0, b.0);
+    }
+    let mut piece_of_root: std::collections::HashMap<u32, usize> = Default::default();
+    let mut pieces: Vec<BoundaryPiece> = Vec::new();
+    let mut seen = std::collections::HashSet::new();
+    for &e in &boundary {
+        let [a, b] = topo.edges[e.idx()];
+        let root = sets.find(a.0);
+        let k = *piece_of_root.entry(root).or_insert_with(|| {
+            pieces.push(BoundaryPiece { edges: Vec::new(), vertices: Vec::new() });
+            pieces.len() - 1
+        });
+        pieces[k].edges.push(e);
+        for v in [a, b] {
+            if seen.insert(v) {
+                pieces[k].vertices.push(v);
+            }
         }
     }
-    let mut roots: Vec<u32> = touched.into_iter().map(|v| sets.find(v)).collect();
-    roots.sort_unstable();
-    roots.dedup();
-    roots.len()
+    pieces
+}
+
+/// Number of connected pieces of the boundary-edge graph ([`boundary_pieces`]).
+pub fn boundary_components(topo: &Topology) -> usize {
+    boundary_pieces(topo).len()
 }
 
 impl Topology {
@@ -115,7 +157,7 @@ impl Topology {
 }
 
 #[cfg(test)]
-mod tests {
+pub(crate) mod tests {
     use super::*;
     use crate::mesh::fixtures;
 
@@ -145,6 +187,56 @@ mod tests {
         let t = Topology::new(&m);
         assert!(boundary_loops(&m, &t).is_empty());
         assert_eq!(boundary_components(&t), 0);
+    }
+
+    /// Three triangles on the edge (0, 1): that edge is non-manifold, the
+    /// other six are boundary and form one piece.
+    pub(crate) fn fin() -> TriMesh {
+        let p = |x: f64, y: f64, z: f64| crate::geom::Vec3::new(x, y, z);
+        let positions = vec![p(0.0, 0.0, 0.0), p(1.0, 0.0, 0.0), p(0.5, 1.0, 0.0), p(0.5, -1.0, 0.0), p(0.5, 0.0, 1.0)];
+        TriMesh::from_raw(positions, &[[0, 1, 2], [1, 0, 3], [0, 1, 4]])
+    }
+
+    /// A Möbius strip of `n` quads (two triangles each), half-twisted.
+    pub(crate) fn moebius(n: u32) -> TriMesh {
+        let mut positions = Vec::new();
+        for i in 0..n {
+            let t = std::f64::consts::TAU * f64::from(i) / f64::from(n);
+            for s in [-0.3, 0.3] {
+                let r = 1.0 + s * (t / 2.0).cos();
+                positions.push(crate::geom::Vec3::new(r * t.cos(), r * t.sin(), s * (t / 2.0).sin()));
+            }
+        }
+        let mut tris = Vec::new();
+        for i in 0..n {
+            let (a, b) = (2 * i, 2 * i + 1);
+            // The last quad joins the first with its sides swapped (the half twist).
+            let (c, d) = if i + 1 == n { (1, 0) } else { (2 * i + 2, 2 * i + 3) };
+            tris.push([a, c, b]);
+            tris.push([b, c, d]);
+        }
+        TriMesh::from_raw(positions, &tris)
+    }
+
+    #[test]
+    fn fin_has_one_boundary_piece_and_a_nonmanifold_edge() {
+        let m = fin();
+        let t = Topology::new(&m);
+        assert_eq!(t.n_nonmanifold_edges(), 1);
+        let pieces = boundary_pieces(&t);
+        assert_eq!(pieces.len(), 1);
+        assert_eq!(pieces[0].edges.len(), 6);
+        assert_eq!(boundary_components(&t), 1);
+    }
+
+    #[test]
+    fn moebius_strip_has_one_boundary_loop() {
+        let m = moebius(12);
+        let t = Topology::new(&m);
+        let pieces = boundary_pieces(&t);
+        assert_eq!(pieces.len(), 1, "{pieces:?}");
+        assert_eq!(pieces[0].edges.len(), 24);
+        assert_eq!(pieces[0].vertices.len(), 24);
     }
 
     #[test]

@@ -49,13 +49,28 @@ impl PipelineError {
 
     /// Stable machine-readable kind: the reader's kind for load errors
     /// (`parse-error`, `too-many-triangles`, …), `cancelled`, `stage-failed`,
-    /// or `write-failed`.
+    /// `storage-full` / `storage-unavailable` ([`storage_kind`]) or
+    /// `write-failed`.
     pub fn kind(&self) -> &'static str {
         match self {
             PipelineError::Load(e) => e.kind(),
             PipelineError::Cancelled => "cancelled",
             PipelineError::Stage { kind, .. } => kind,
+            PipelineError::Write { source: WriteError::Io(e), .. } => storage_kind(e).unwrap_or("write-failed"),
             PipelineError::Write { .. } => "write-failed",
         }
+    }
+}
+
+/// The failure kind of an I/O error caused by the storage rather than the
+/// data: `storage-full` for a full disk or an exhausted quota (`ENOSPC`,
+/// `EDQUOT`), `storage-unavailable` for a read-only file system (`EROFS`);
+/// `None` for other errors.
+pub fn storage_kind(e: &std::io::Error) -> Option<&'static str> {
+    use std::io::ErrorKind;
+    match e.kind() {
+        ErrorKind::StorageFull | ErrorKind::QuotaExceeded => Some("storage-full"),
+        ErrorKind::ReadOnlyFilesystem => Some("storage-unavailable"),
+        _ => None,
     }
 }

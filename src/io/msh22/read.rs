@@ -82,7 +82,7 @@ fn read_nodes<R: BufRead>(
                 let y = src.expect_f64("the node's y")?;
                 let z = src.expect_f64("the node's z")?;
                 let i = sink.vertex([x, y, z], tag, at)?;
-                nodes.push(tag, i);
+                nodes.push(tag, i, at);
             }
             check_line_done(src, "Nodes")?;
         }
@@ -94,7 +94,7 @@ fn read_nodes<R: BufRead>(
                 let d = |o: usize| e.f64([r[o], r[o + 1], r[o + 2], r[o + 3], r[o + 4], r[o + 5], r[o + 6], r[o + 7]]);
                 let tag = u64::try_from(tag).map_err(|_| src.parse_error_at(at, format!("negative node tag {tag}")))?;
                 let i = sink.vertex([d(4), d(12), d(20)], tag, at)?;
-                nodes.push(tag, i);
+                nodes.push(tag, i, at);
             }
         }
     }
@@ -234,6 +234,19 @@ mod tests {
         assert_eq!(m.tets, vec![[0, 1, 2, 3]]);
         assert_eq!(m.skipped["Point"], 1);
         assert_eq!(m.skipped["Line 2"], 1);
+    }
+
+    #[test]
+    fn duplicate_node_tag_with_other_coordinates_is_refused() {
+        let bad = ASCII.replace("7 9 9 9", "20 9 9 9");
+        let e = read(bad.as_bytes(), &lim()).unwrap_err();
+        assert_eq!(e.kind(), "parse-error");
+        let msg = e.to_string();
+        assert!(msg.contains("node tag 20 is defined twice") && msg.contains("line 11") && msg.contains("line 14"), "{msg}");
+        let same = ASCII.replace("7 9 9 9", "20 1 0 0");
+        let m = read(same.as_bytes(), &lim()).unwrap();
+        assert_eq!(m.skipped["duplicate node tag"], 1);
+        assert_eq!(m.triangles, vec![[0, 2, 1], [0, 1, 3]]);
     }
 
     #[test]

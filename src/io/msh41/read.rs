@@ -27,11 +27,18 @@
 //! Gmsh's own reader does. `$Parametrizations`, `$Periodic`, `$NodeData`,
 //! `$ElementData`, `$PhysicalNames`, `$Comments` and unknown sections are
 //! skipped up to their `$End…` line. Triangles (type 2) and tetrahedra
-//! (type 4) are kept; every other element type is skipped and counted by its
-//! Gmsh name (in binary files only types with a fixed node count can be).
+//! (type 4) are kept; every other element type of Gmsh's table is skipped
+//! and counted by its Gmsh name; a type number not in the table (or of no
+//! fixed size) is refused as `unsupported`, naming the type and the block.
+//!
+//! Consistency: the header's `numNodes` / `numElements` must equal the sum
+//! of the block sizes, and every tag read must lie in the header's
+//! `[minTag, maxTag]` (element tags of skipped binary blocks are not read);
+//! a node tag given twice is tolerated only with bit-identical coordinates
+//! (see [`prepare_nodes`]). Each error names the line (byte offset).
 
 use crate::io::msh_common::{
-    NodeTable, TETRAHEDRON, TRIANGLE, check_line_done, element_info, element_name, end_marker, keep_element,
+    NodeTable, TETRAHEDRON, TRIANGLE, check_line_done, element_info, end_marker, keep_element,
     lookup_nodes, prepare_nodes, read_i32, read_u64, skip_items,
 };
 use crate::io::source::{Endian, MeshSink, Source, capacity_hint, show};
@@ -146,6 +153,51 @@ fn read_section_header<R: BufRead>(src: &mut Source<R>, binary: Option<Endian>, 
     Ok(h)
 }
 
+/// A section header (`numEntityBlocks numItems minTag maxTag`) and where it is.
+fn read_counted_header<R: BufRead>(
+    src: &mut Source<R>,
+    binary: Option<Endian>,
+    what: &str,
+) -> Result<([u64; 4], Location), IoError> {
+    let before = src.at_byte();
+    let h = read_section_header(src, binary, what)?;
+    Ok((h, if binary.is_some() { before } else { src.at_line() }))
+}
+
+/// A tag outside the header's `[minTag, maxTag]` makes the file inconsistent
+/// (Gmsh sizes its tag tables from them).
+fn check_tag_range<R: BufRead>(
+    src: &Source<R>,
+    header: &[u64; 4],
+    what: &str,
+    tag: u64,
+    at: Location,
+) -> Result<(), IoError> {
+    let [_, _, min, max] = *header;
+    if (min..=max).contains(&tag) {
+        return Ok(());
+    }
+    Err(src.parse_error_at(at, format!("{what} tag {tag} is outside the section header's range [{min}, {max}]")))
+}
+
+/// The header's item count must equal the sum of the block sizes.
+fn check_total<R: BufRead>(
+    src: &Source<R>,
+    section: &str,
+    what: &str,
+    declared: u64,
+    total: u64,
+    header_at: Location,
+) -> Result<(), IoError> {
+    if declared == total {
+        return Ok(());
+    }
+    Err(src.parse_error_at(
+        header_at,
+        format!("the {section} header declares {declared} {what}s, but its blocks hold {total}"),
+    ))
+}
+
 /// `$Nodes`: blocks of tags then coordinates.
 fn read_nodes<R: BufRead>(
     src: &mut Source<R>,
@@ -153,8 +205,10 @@ fn read_nodes<R: BufRead>(
     sink: &mut MeshSink,
     nodes: &mut NodeTable,
 ) -> Result<(), IoError> {
-    let [n_blocks, n_nodes, _, _] = read_section_header(src, binary, "$Nodes")?;
+    let (header, header_at) = read_counted_header(src, binary, "$Nodes")?;
+    let [n_blocks, n_nodes, _, _] = header;
     let hint = capacity_hint(n_nodes, 32, None);
+    let mut total = 0u64;
     sink.mesh.positions.reserve(hint);
     nodes.reserve(hint);
     let mut block_tags: Vec<u64> = Vec::new();
@@ -167,15 +221,18 @@ fn read_nodes<R: BufRead>(
             ));
         }
         let n_param = if b.kind == 1 { b.dim as usize } else { 0 };
+        total = total.saturating_add(b.count);
         block_tags.clear();
         for _ in 0..b.count {
             if block_tags.len() + sink.n_vertices() >= sink.limits.max_vertices {
                 return Err(IoError::TooManyVertices { format: Format::Msh, max: sink.limits.max_vertices, at });
             }
-            block_tags.push(match binary {
-                None => src.expect_u64("a node tag")?,
-                Some(e) => read_u64(src, e, "a node tag")?,
-            });
+            let (tag, at) = match binary {
+                None => (src.expect_u64("a node tag")?, src.at_line()),
+                Some(e) => (read_u64(src, e, "a node tag")?, src.at_byte()),
+            };
+            check_tag_range(src, &header, "node", tag, at)?;
+            block_tags.push(tag);
         }
         for &tag in &block_tags {
             let (p, at) = match binary {
@@ -201,9 +258,10 @@ fn read_nodes<R: BufRead>(
                 }
             };
             let i = sink.vertex(p, tag, at)?;
-            nodes.push(tag, i);
+            nodes.push(tag, i, at);
         }
     }
+    check_total(src, "$Nodes", "node", n_nodes, total, header_at)?;
     if binary.is_none() {
         check_line_done(src, "Nodes")?;
     }
@@ -222,20 +280,34 @@ fn read_elements<R: BufRead>(
     sink: &mut MeshSink,
     nodes: &NodeTable,
 ) -> Result<(), IoError> {
-    let [n_blocks, _, _, _] = read_section_header(src, binary, "$Elements")?;
+    let (header, header_at) = read_counted_header(src, binary, "$Elements")?;
+    let [n_blocks, n_elements, _, _] = header;
     let mut node_tags = [0u64; 4];
-    for _ in 0..n_blocks {
+    let mut total = 0u64;
+    for block_no in 1..=n_blocks {
         let (b, at) = read_block(src, binary, "element")?;
         let ty = i32::try_from(b.kind).unwrap_or(-1);
-        let info = element_info(ty);
+        total = total.saturating_add(b.count);
+        let Some(info) = element_info(ty) else {
+            return Err(IoError::Unsupported {
+                format: Format::Msh,
+                at,
+                feature: format!(
+                    "element type {} in element block {block_no} of {n_blocks}: not a Gmsh element type of fixed size \
+                     that this reader knows",
+                    b.kind
+                ),
+            });
+        };
         let kept = ty == TRIANGLE || ty == TETRAHEDRON;
         match (binary, info) {
-            (_, Some((_, nn))) if kept => {
+            (_, (_, nn)) if kept => {
                 for _ in 0..b.count {
                     let (tag, at) = match binary {
                         None => {
                             let tag = src.expect_u64("an element tag")?;
                             let at = src.at_line();
+                            check_tag_range(src, &header, "element", tag, at)?;
                             for t in node_tags.iter_mut().take(nn) {
                                 *t = src.expect_u64("a node tag of the element")?;
                             }
@@ -252,6 +324,7 @@ fn read_elements<R: BufRead>(
                             for (k, t) in node_tags.iter_mut().take(nn).enumerate() {
                                 *t = u(k + 1);
                             }
+                            check_tag_range(src, &header, "element", u(0), at)?;
                             (u(0), at)
                         }
                     };
@@ -259,36 +332,23 @@ fn read_elements<R: BufRead>(
                     keep_element(sink, ty, &v[..nn], at)?;
                 }
             }
-            (None, Some((name, nn))) => {
-                let n_tokens = b.count.saturating_mul(1 + nn as u64);
-                for _ in 0..n_tokens {
-                    src.expect_token("an element tag or node tag")?;
+            (None, (name, nn)) => {
+                for _ in 0..b.count {
+                    let tag = src.expect_u64("an element tag")?;
+                    check_tag_range(src, &header, "element", tag, src.at_line())?;
+                    for _ in 0..nn {
+                        src.expect_token("a node tag of the element")?;
+                    }
                 }
                 sink.skip(name, usize::try_from(b.count).unwrap_or(usize::MAX));
             }
-            (Some(_), Some((name, nn))) => {
+            (Some(_), (name, nn)) => {
                 skip_items(src, b.count, 8 * (1 + nn as u64), name)?;
                 sink.skip(name, usize::try_from(b.count).unwrap_or(usize::MAX));
             }
-            (None, None) => {
-                // Unknown size: one element per line, as Gmsh writes them.
-                src.discard_line();
-                for _ in 0..b.count {
-                    if !src.next_line()? {
-                        return Err(src.truncated_at(src.at_line(), format!("the block of element type {ty} is incomplete")));
-                    }
-                }
-                sink.skip(&element_name(ty), usize::try_from(b.count).unwrap_or(usize::MAX));
-            }
-            (Some(_), None) => {
-                return Err(IoError::Unsupported {
-                    format: Format::Msh,
-                    at,
-                    feature: format!("element type {ty} in a binary file (no fixed node count, cannot be skipped)"),
-                });
-            }
         }
     }
+    check_total(src, "$Elements", "element", n_elements, total, header_at)?;
     if binary.is_none() {
         check_line_done(src, "Elements")?;
     }
@@ -332,10 +392,57 @@ mod tests {
         assert!(e.to_string().contains("parametric flag 2") && e.to_string().contains("line 14"), "{e}");
         let bad = ASCII.replace("$EndEntities", "$EndEntitie");
         assert_eq!(read(bad.as_bytes(), &lim()).unwrap_err().kind(), "truncated");
-        let bad = ASCII.replace("$Elements\n3 4 1 4\n", "$Elements\n3 4 1 4\n0 1 200 1\n1 2 3 4 5 6\n").replace("$Elements\n3 4", "$Elements\n4 5");
-        let m = read(bad.as_bytes(), &lim()).unwrap();
-        assert_eq!(m.skipped["element type 200"], 1);
-        assert_eq!(m.triangles.len(), 2);
+    }
+
+    /// The reproduction of issue 11 item 7: tag 3 twice, at (0, 1, 0) and (5, 5, 5).
+    const DUPLICATE: &str = "$MeshFormat\n4.1 0 8\n$EndMeshFormat\n$Nodes\n1 4 1 3\n2 1 0 4\n1\n2\n3\n3\n0 0 0\n1 0 0\n0 1 0\n5 5 5\n$EndNodes\n$Elements\n1 1 1 1\n2 1 2 1\n1 1 2 3\n$EndElements\n";
+
+    #[test]
+    fn duplicate_node_tag_with_other_coordinates_is_refused() {
+        let e = read(DUPLICATE.as_bytes(), &lim()).unwrap_err();
+        assert_eq!(e.kind(), "parse-error");
+        let msg = e.to_string();
+        assert!(msg.contains("node tag 3 is defined twice") && msg.contains("line 13") && msg.contains("line 14"), "{msg}");
+        // The same coordinates twice are tolerated (the first wins, as in Gmsh).
+        let same = DUPLICATE.replace("5 5 5", "0 1 0");
+        let m = read(same.as_bytes(), &lim()).unwrap();
+        assert_eq!(m.triangles, vec![[0, 1, 2]]);
+        assert_eq!(m.skipped["duplicate node tag"], 1);
+    }
+
+    #[test]
+    fn header_totals_must_match_the_blocks() {
+        let bad = ASCII.replace("$Nodes\n2 5 3 1000", "$Nodes\n2 6 3 1000");
+        let e = read(bad.as_bytes(), &lim()).unwrap_err();
+        assert_eq!(e.kind(), "parse-error");
+        assert!(e.to_string().contains("declares 6 nodes, but its blocks hold 5") && e.to_string().contains("line 10"), "{e}");
+        let bad = ASCII.replace("$Elements\n3 4 1 4", "$Elements\n3 3 1 4");
+        let e = read(bad.as_bytes(), &lim()).unwrap_err();
+        assert!(e.to_string().contains("declares 3 elements, but its blocks hold 4") && e.to_string().contains("line 25"), "{e}");
+    }
+
+    #[test]
+    fn tags_outside_the_header_range_are_refused() {
+        let bad = ASCII.replace("$Nodes\n2 5 3 1000", "$Nodes\n2 5 3 999");
+        let e = read(bad.as_bytes(), &lim()).unwrap_err();
+        assert_eq!(e.kind(), "parse-error");
+        assert!(e.to_string().contains("node tag 1000 is outside") && e.to_string().contains("line 15"), "{e}");
+        let bad = ASCII.replace("$Elements\n3 4 1 4", "$Elements\n3 4 2 4");
+        let e = read(bad.as_bytes(), &lim()).unwrap_err();
+        assert!(e.to_string().contains("element tag 1 is outside the section header's range [2, 4]") && e.to_string().contains("line 27"), "{e}");
+        let bad = ASCII.replace("4 3 1000 7 8", "5 3 1000 7 8");
+        let e = read(bad.as_bytes(), &lim()).unwrap_err();
+        assert!(e.to_string().contains("element tag 5 is outside") && e.to_string().contains("line 32"), "{e}");
+    }
+
+    #[test]
+    fn unknown_element_type_is_unsupported_naming_type_and_block() {
+        let bad = ASCII
+            .replace("$Elements\n3 4 1 4\n", "$Elements\n4 5 1 5\n0 1 200 1\n5 2 3 4 5 6\n");
+        let e = read(bad.as_bytes(), &lim()).unwrap_err();
+        assert_eq!(e.kind(), "unsupported");
+        let msg = e.to_string();
+        assert!(msg.contains("element type 200") && msg.contains("block 1 of 4") && msg.contains("line 26"), "{msg}");
     }
 
     /// A binary file with (partitioned) entities, written by hand.
@@ -422,6 +529,6 @@ mod tests {
         b[at..at + 4].copy_from_slice(&34i32.to_le_bytes());
         let e = read(&b[..], &lim()).unwrap_err();
         assert_eq!(e.kind(), "unsupported");
-        assert!(e.to_string().contains("element type 34"), "{e}");
+        assert!(e.to_string().contains("element type 34 in element block 1 of 3"), "{e}");
     }
 }
