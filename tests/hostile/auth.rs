@@ -266,7 +266,9 @@ fn malformed_token_files_refuse_to_start_naming_the_line() {
 
 /// Starts `meshatlas serve` with exactly `args`; the child and the
 /// `listening on` address, or the exit code and stderr.
-fn spawn_serve(args: &[&str]) -> Result<(Child, String), (Option<i32>, String)> {
+/// Starts the binary with `args`; the data directory lives as long as the
+/// returned `TempDir`.
+fn spawn_serve(args: &[&str]) -> Result<(Child, String, tempfile::TempDir), (Option<i32>, String)> {
     let tmp = tempfile::tempdir().unwrap();
     let data = tmp.path().join("data");
     let log_path = tmp.path().join("log");
@@ -284,7 +286,7 @@ fn spawn_serve(args: &[&str]) -> Result<(Child, String), (Option<i32>, String)> 
     let mut line = String::new();
     let _ = BufReader::new(child.stdout.take().unwrap()).read_line(&mut line);
     match line.trim().strip_prefix("listening on ") {
-        Some(addr) => Ok((child, addr.to_string())),
+        Some(addr) => Ok((child, addr.to_string(), tmp)),
         None => {
             let code = child.wait().ok().and_then(|s| s.code());
             Err((code, std::fs::read_to_string(&log_path).unwrap_or_default()))
@@ -297,7 +299,7 @@ fn a_non_loopback_address_without_auth_refuses_to_start_unless_insecure_no_auth(
     // Binding 0.0.0.0 only listens; the test talks to it over 127.0.0.1.
     for addr in ["0.0.0.0:0", "[::]:0"] {
         match spawn_serve(&["--addr", addr]) {
-            Ok((mut child, _)) => {
+            Ok((mut child, _, _dir)) => {
                 let _ = child.kill();
                 panic!("listened on {addr} without authentication");
             }
@@ -307,7 +309,7 @@ fn a_non_loopback_address_without_auth_refuses_to_start_unless_insecure_no_auth(
             }
         }
     }
-    let (mut child, addr) = spawn_serve(&["--addr", "0.0.0.0:0", "--insecure-no-auth"]).expect("--insecure-no-auth");
+    let (mut child, addr, _dir) = spawn_serve(&["--addr", "0.0.0.0:0", "--insecure-no-auth"]).expect("--insecure-no-auth");
     let port = addr.rsplit(':').next().unwrap();
     let answer = raw_exchange(
         &format!("127.0.0.1:{port}"),
@@ -318,7 +320,7 @@ fn a_non_loopback_address_without_auth_refuses_to_start_unless_insecure_no_auth(
     let _ = child.wait();
     assert_eq!(raw_status(&answer), 200, "{}", String::from_utf8_lossy(&answer));
     // Loopback needs neither.
-    let (mut child, _) = spawn_serve(&["--addr", "127.0.0.1:0"]).expect("loopback without auth");
+    let (mut child, _, _dir2) = spawn_serve(&["--addr", "127.0.0.1:0"]).expect("loopback without auth");
     let _ = child.kill();
     let _ = child.wait();
 }

@@ -138,7 +138,8 @@ async fn cancel_of_a_job_stuck_on_a_full_disk_answers_and_takes_effect_once_spac
     let start = Instant::now();
     let r = s.client.post(s.url(&format!("/v1/jobs/{id}/cancel"))).send().await.unwrap();
     assert!(start.elapsed() < Duration::from_secs(10), "cancel took {:?}", start.elapsed());
-    assert!(matches!(r.status().as_u16(), 200 | 507), "cancel answered {}", r.status());
+    // 202: the stop is pending while the worker retries recording the end.
+    assert!(matches!(r.status().as_u16(), 200 | 202 | 507), "cancel answered {}", r.status());
     std::fs::remove_file(&filler).unwrap();
     let j = s.wait_final(&id, Duration::from_secs(15)).await;
     // Cancelled when the cancel came while the end was being retried;
