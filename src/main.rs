@@ -40,37 +40,62 @@ struct ServeArgs {
     /// Directory for the job database, uploads and artifacts.
     #[arg(long, env = "MESHATLAS_DATA_DIR", default_value = "./data")]
     data_dir: PathBuf,
-    /// Jobs run at the same time.
-    #[arg(long, env = "MESHATLAS_WORKERS", default_value_t = 1, value_parser = RangedU64ValueParser::<usize>::new().range(1..=1024))]
+    /// Jobs run at the same time (1–1024).
+    #[arg(
+        long, env = "MESHATLAS_WORKERS", default_value_t = 1,
+        value_parser = RangedU64ValueParser::<usize>::new().range(1..=1024)
+    )]
     workers: usize,
-    /// Largest accepted upload in bytes (413 beyond).
-    #[arg(long, env = "MESHATLAS_MAX_UPLOAD_BYTES", default_value_t = 512 * 1024 * 1024, value_parser = value_parser!(u64).range(1..))]
+    /// Largest accepted upload in bytes (413 beyond; at least 1).
+    #[arg(
+        long, env = "MESHATLAS_MAX_UPLOAD_BYTES", default_value_t = 512 * 1024 * 1024,
+        value_parser = value_parser!(u64).range(1..)
+    )]
     max_upload_bytes: u64,
-    /// Most jobs waiting in the queue (429 beyond).
-    #[arg(long, env = "MESHATLAS_MAX_QUEUED", default_value_t = 64, value_parser = RangedU64ValueParser::<usize>::new().range(1..=1_000_000))]
+    /// Most jobs waiting in the queue (429 beyond; 1–1000000).
+    #[arg(
+        long, env = "MESHATLAS_MAX_QUEUED", default_value_t = 64,
+        value_parser = RangedU64ValueParser::<usize>::new().range(1..=1_000_000)
+    )]
     max_queued: usize,
-    /// Server-wide triangle cap (jobs above fail with too-many-triangles).
-    #[arg(long, env = "MESHATLAS_MAX_TRIANGLES", default_value_t = 5_000_000, value_parser = RangedU64ValueParser::<usize>::new().range(1..=u32::MAX as u64))]
+    /// Server-wide triangle cap (jobs above fail with too-many-triangles;
+    /// 1–4294967295).
+    #[arg(
+        long, env = "MESHATLAS_MAX_TRIANGLES", default_value_t = 5_000_000,
+        value_parser = RangedU64ValueParser::<usize>::new().range(1..=u32::MAX as u64)
+    )]
     max_triangles: usize,
     /// Wall-time limit of one job, in seconds (0 < secs <= 31536000, one year).
     #[arg(long, env = "MESHATLAS_JOB_TIMEOUT_SECS", default_value_t = 3600.0, value_parser = parse_job_timeout)]
     job_timeout_secs: f64,
-    /// Times a job may be interrupted by a crash before it is failed.
+    /// Times a job may be interrupted by a crash before it is failed (1–100).
     #[arg(long, env = "MESHATLAS_MAX_ATTEMPTS", default_value_t = 3, value_parser = value_parser!(u32).range(1..=100))]
     max_attempts: u32,
-    /// Retry-After seconds sent with 429.
-    #[arg(long, env = "MESHATLAS_RETRY_AFTER_SECS", default_value_t = 10, value_parser = value_parser!(u64).range(0..=86_400))]
+    /// Retry-After seconds sent with 429 (0–86400).
+    #[arg(
+        long, env = "MESHATLAS_RETRY_AFTER_SECS", default_value_t = 10,
+        value_parser = value_parser!(u64).range(0..=86_400)
+    )]
     retry_after_secs: u64,
     /// Seconds for a request head to arrive; also how long an idle
-    /// keep-alive connection stays open.
-    #[arg(long, env = "MESHATLAS_HEADER_TIMEOUT_SECS", default_value_t = 10, value_parser = value_parser!(u64).range(1..=3600))]
+    /// keep-alive connection stays open (1–3600).
+    #[arg(
+        long, env = "MESHATLAS_HEADER_TIMEOUT_SECS", default_value_t = 10,
+        value_parser = value_parser!(u64).range(1..=3600)
+    )]
     header_timeout_secs: u64,
-    /// Seconds an upload may send nothing before it is dropped (408).
-    #[arg(long, env = "MESHATLAS_BODY_IDLE_TIMEOUT_SECS", default_value_t = 30, value_parser = value_parser!(u64).range(1..=3600))]
+    /// Seconds an upload may send nothing before it is dropped (408; 1–3600).
+    #[arg(
+        long, env = "MESHATLAS_BODY_IDLE_TIMEOUT_SECS", default_value_t = 30,
+        value_parser = value_parser!(u64).range(1..=3600)
+    )]
     body_idle_timeout_secs: u64,
     /// Seconds in-flight requests may run after SIGTERM/Ctrl-C before their
-    /// connections are dropped and running jobs requeued.
-    #[arg(long, env = "MESHATLAS_SHUTDOWN_GRACE_SECS", default_value_t = 10, value_parser = value_parser!(u64).range(0..=3600))]
+    /// connections are dropped and running jobs requeued (0–3600).
+    #[arg(
+        long, env = "MESHATLAS_SHUTDOWN_GRACE_SECS", default_value_t = 10,
+        value_parser = value_parser!(u64).range(0..=3600)
+    )]
     shutdown_grace_secs: u64,
     /// Testing only: wait this long (cancellably) before each job, so tests
     /// can kill the server mid-job.

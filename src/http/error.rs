@@ -197,7 +197,12 @@ impl ApiError {
     /// close`) as bytes, for answering below the framework; logged like any
     /// other rejection.
     pub fn http1_bytes(&self, request_id: &str) -> Vec<u8> {
-        tracing::info!(request_id, kind = self.0.kind, status = self.0.status.as_u16(), "request rejected by the HTTP parser");
+        tracing::info!(
+            request_id,
+            kind = self.0.kind,
+            status = self.0.status.as_u16(),
+            "request rejected by the HTTP parser"
+        );
         let body = serde_json::to_vec(&self.body(request_id)).unwrap_or_default();
         let status = self.0.status;
         let mut out = format!(

@@ -124,6 +124,34 @@ fn a_half_sent_body_is_dropped_after_the_idle_timeout_and_its_part_file_removed(
     }
 }
 
+#[test]
+fn a_half_sent_multipart_upload_is_dropped_after_the_idle_timeout_and_its_part_file_removed() {
+    let (server, _tmp) = start_with_env(&[], &[("MESHATLAS_BODY_IDLE_TIMEOUT_SECS", "2")]);
+    let mut s = TcpStream::connect(&server.addr).unwrap();
+    s.write_all(
+        b"POST /v1/jobs HTTP/1.1\r\nHost: x\r\nContent-Type: multipart/form-data; boundary=XYZ\r\n\
+          Content-Length: 1000000\r\n\r\n--XYZ\r\nContent-Disposition: form-data; name=\"file\"; \
+          filename=\"a.stl\"\r\n\r\n",
+    )
+    .unwrap();
+    s.write_all(&vec![b'x'; 100_000]).unwrap();
+    let start = Instant::now();
+    while server.tmp_files().is_empty() {
+        assert!(start.elapsed() < Duration::from_secs(10), "no upload file appeared in tmp/");
+        std::thread::sleep(Duration::from_millis(20));
+    }
+    let mut out = Vec::new();
+    let closed = read_until_closed(&mut s, Duration::from_secs(12), &mut out);
+    assert!(closed, "a stalled multipart upload was held for {:?}", start.elapsed());
+    assert_eq!(raw_status(&out), 408, "{}", String::from_utf8_lossy(&out));
+    assert_eq!(raw_problem(&out)["type"], "urn:meshatlas:problem:upload-timeout");
+    let start = Instant::now();
+    while !server.tmp_files().is_empty() {
+        assert!(start.elapsed() < Duration::from_secs(5), "left in tmp/: {:?}", server.tmp_files());
+        std::thread::sleep(Duration::from_millis(20));
+    }
+}
+
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
 async fn sigterm_with_a_half_sent_upload_open_exits_within_the_grace_and_requeues_the_running_job() {
     let tmp = tempfile::tempdir().unwrap();
@@ -152,7 +180,8 @@ async fn sigterm_with_a_half_sent_upload_open_exits_within_the_grace_and_requeue
     server.signal("TERM");
     let t = Instant::now();
     let status = server.wait_exit(Duration::from_secs(10));
-    let status = status.unwrap_or_else(|| panic!("still running 10 s after SIGTERM (grace 2 s); log:\n{}", server.log()));
+    let status =
+        status.unwrap_or_else(|| panic!("still running 10 s after SIGTERM (grace 2 s); log:\n{}", server.log()));
     assert!(status.success(), "exit status {status} after SIGTERM");
     assert!(t.elapsed() >= Duration::from_millis(1500), "the grace was not given: exited after {:?}", t.elapsed());
     assert!(server.tmp_files().is_empty(), "left in tmp/: {:?}", server.tmp_files());
@@ -200,7 +229,11 @@ fn control_bytes_in_content_type_answer_400_problem_json() {
     assert_eq!(p["type"], "urn:meshatlas:problem:bad-request");
     assert_eq!(p["status"], 400);
     // The server still answers on a new connection afterwards.
-    let ok = raw_exchange(&server.addr, b"GET /healthz HTTP/1.1\r\nHost: x\r\nConnection: close\r\n\r\n", Duration::from_secs(5));
+    let ok = raw_exchange(
+        &server.addr,
+        b"GET /healthz HTTP/1.1\r\nHost: x\r\nConnection: close\r\n\r\n",
+        Duration::from_secs(5),
+    );
     assert_eq!(raw_status(&ok), 200, "{}", String::from_utf8_lossy(&ok));
 }
 
