@@ -8,7 +8,8 @@ use std::path::PathBuf;
 use std::sync::Arc;
 use std::time::Duration;
 
-use clap::{Args, Parser, Subcommand};
+use clap::builder::RangedU64ValueParser;
+use clap::{Args, Parser, Subcommand, value_parser};
 
 use meshatlas::http::auth::Auth;
 use meshatlas::http::{AppState, HttpLimits};
@@ -38,22 +39,35 @@ enum Command {
 struct ServeArgs {
     /// Address to listen on (port 0 picks a free port; the bound address is
     /// printed as `listening on ADDR`).
-    #[arg(long, env = "MESHATLAS_ADDR", default_value = "127.0.0.1:8080")]
+    #[arg(long, env = "MESHATLAS_ADDR", default_value = "127.0.0.1:8080", value_parser = parse_addr)]
     addr: String,
     /// Directory for the job database, uploads and artifacts.
     #[arg(long, env = "MESHATLAS_DATA_DIR", default_value = "./data")]
     data_dir: PathBuf,
-    /// Jobs run at the same time.
-    #[arg(long, env = "MESHATLAS_WORKERS", default_value_t = 1)]
+    /// Jobs run at the same time (1–1024).
+    #[arg(
+        long, env = "MESHATLAS_WORKERS", default_value_t = 1,
+        value_parser = RangedU64ValueParser::<usize>::new().range(1..=1024)
+    )]
     workers: usize,
-    /// Largest accepted upload in bytes (413 beyond).
-    #[arg(long, env = "MESHATLAS_MAX_UPLOAD_BYTES", default_value_t = 512 * 1024 * 1024)]
+    /// Largest accepted upload in bytes (413 beyond; at least 1).
+    #[arg(
+        long, env = "MESHATLAS_MAX_UPLOAD_BYTES", default_value_t = 512 * 1024 * 1024,
+        value_parser = value_parser!(u64).range(1..)
+    )]
     max_upload_bytes: u64,
-    /// Most jobs waiting in the queue (429 beyond).
-    #[arg(long, env = "MESHATLAS_MAX_QUEUED", default_value_t = 64)]
+    /// Most jobs waiting in the queue (429 beyond; 1–1000000).
+    #[arg(
+        long, env = "MESHATLAS_MAX_QUEUED", default_value_t = 64,
+        value_parser = RangedU64ValueParser::<usize>::new().range(1..=1_000_000)
+    )]
     max_queued: usize,
-    /// Server-wide triangle cap (jobs above fail with too-many-triangles).
-    #[arg(long, env = "MESHATLAS_MAX_TRIANGLES", default_value_t = 5_000_000)]
+    /// Server-wide triangle cap (jobs above fail with too-many-triangles;
+    /// 1–4294967295).
+    #[arg(
+        long, env = "MESHATLAS_MAX_TRIANGLES", default_value_t = 5_000_000,
+        value_parser = RangedU64ValueParser::<usize>::new().range(1..=u32::MAX as u64)
+    )]
     max_triangles: usize,
     /// Server-wide cap on the frames stage's tetrahedra (a job's own
     /// `frames.max_tets` is clamped to it).
@@ -64,15 +78,38 @@ struct ServeArgs {
     /// Default: 75 % of physical memory (or of the cgroup limit if smaller).
     #[arg(long, env = "MESHATLAS_MEMORY_BUDGET", value_parser = meshatlas::jobs::memory::parse_byte_size)]
     memory_budget: Option<u64>,
-    /// Wall-time limit of one job, in seconds.
-    #[arg(long, env = "MESHATLAS_JOB_TIMEOUT_SECS", default_value_t = 3600.0)]
+    /// Wall-time limit of one job, in seconds (0 < secs <= 31536000, one year).
+    #[arg(long, env = "MESHATLAS_JOB_TIMEOUT_SECS", default_value_t = 3600.0, value_parser = parse_job_timeout)]
     job_timeout_secs: f64,
-    /// Times a job may be interrupted by a crash before it is failed.
-    #[arg(long, env = "MESHATLAS_MAX_ATTEMPTS", default_value_t = 3)]
+    /// Times a job may be interrupted by a crash before it is failed (1–100).
+    #[arg(long, env = "MESHATLAS_MAX_ATTEMPTS", default_value_t = 3, value_parser = value_parser!(u32).range(1..=100))]
     max_attempts: u32,
-    /// Retry-After seconds sent with 429.
-    #[arg(long, env = "MESHATLAS_RETRY_AFTER_SECS", default_value_t = 10)]
+    /// Retry-After seconds sent with 429 (0–86400).
+    #[arg(
+        long, env = "MESHATLAS_RETRY_AFTER_SECS", default_value_t = 10,
+        value_parser = value_parser!(u64).range(0..=86_400)
+    )]
     retry_after_secs: u64,
+    /// Seconds for a request head to arrive; also how long an idle
+    /// keep-alive connection stays open (1–3600).
+    #[arg(
+        long, env = "MESHATLAS_HEADER_TIMEOUT_SECS", default_value_t = 10,
+        value_parser = value_parser!(u64).range(1..=3600)
+    )]
+    header_timeout_secs: u64,
+    /// Seconds an upload may send nothing before it is dropped (408; 1–3600).
+    #[arg(
+        long, env = "MESHATLAS_BODY_IDLE_TIMEOUT_SECS", default_value_t = 30,
+        value_parser = value_parser!(u64).range(1..=3600)
+    )]
+    body_idle_timeout_secs: u64,
+    /// Seconds in-flight requests may run after SIGTERM/Ctrl-C before their
+    /// connections are dropped and running jobs requeued (0–3600).
+    #[arg(
+        long, env = "MESHATLAS_SHUTDOWN_GRACE_SECS", default_value_t = 10,
+        value_parser = value_parser!(u64).range(0..=3600)
+    )]
+    shutdown_grace_secs: u64,
     /// Testing only: wait this long (cancellably) before each job, so tests
     /// can kill the server mid-job.
     #[arg(long, env = "MESHATLAS_TEST_JOB_DELAY_MS", hide = true)]
@@ -168,9 +205,6 @@ fn main() -> std::process::ExitCode {
 }
 
 fn serve(args: ServeArgs) -> Result<(), String> {
-    if !(args.job_timeout_secs.is_finite() && args.job_timeout_secs > 0.0) {
-        return Err(format!("--job-timeout-secs must be positive, got {}", args.job_timeout_secs));
-    }
     let config = JobsConfig {
         workers: args.workers.max(1),
         max_queued: args.max_queued,
@@ -199,7 +233,13 @@ fn serve(args: ServeArgs) -> Result<(), String> {
         }
         None => executor,
     };
-    let limits = HttpLimits { max_upload_bytes: args.max_upload_bytes, retry_after_secs: args.retry_after_secs };
+    let limits = HttpLimits {
+        max_upload_bytes: args.max_upload_bytes,
+        retry_after_secs: args.retry_after_secs,
+        header_timeout: Duration::from_secs(args.header_timeout_secs),
+        body_idle_timeout: Duration::from_secs(args.body_idle_timeout_secs),
+        shutdown_grace: Duration::from_secs(args.shutdown_grace_secs),
+    };
     let rt = tokio::runtime::Builder::new_multi_thread()
         .enable_all()
         .build()
@@ -270,6 +310,33 @@ fn refuse_non_loopback(addr: &str) -> Result<(), String> {
         )),
         None => Ok(()),
     }
+}
+
+/// `--addr`: an IP socket address or `host:port` (resolved when binding).
+fn parse_addr(s: &str) -> Result<String, String> {
+    if s.parse::<std::net::SocketAddr>().is_ok() {
+        return Ok(s.to_string());
+    }
+    let (host, port) = s.rsplit_once(':').ok_or("expected HOST:PORT, e.g. 127.0.0.1:8080")?;
+    port.parse::<u16>().map_err(|_| format!("port `{port}` is not a number in 0..=65535"))?;
+    let host_ok = !host.is_empty() && host.bytes().all(|b| b.is_ascii_alphanumeric() || b"-._".contains(&b));
+    if !host_ok {
+        return Err(format!("`{host}` is neither an IP address nor a host name"));
+    }
+    Ok(s.to_string())
+}
+
+/// Longest accepted `--job-timeout-secs` (one year).
+const MAX_JOB_TIMEOUT_SECS: f64 = 365.0 * 24.0 * 3600.0;
+
+/// `--job-timeout-secs`: finite, positive, at most one year (larger values
+/// overflow the runner's deadline arithmetic).
+fn parse_job_timeout(s: &str) -> Result<f64, String> {
+    let secs: f64 = s.trim().parse().map_err(|_| format!("`{s}` is not a number"))?;
+    if !(secs.is_finite() && secs > 0.0 && secs <= MAX_JOB_TIMEOUT_SECS) {
+        return Err(format!("must be a number of seconds in (0, {MAX_JOB_TIMEOUT_SECS}]"));
+    }
+    Ok(secs)
 }
 
 /// Resolves on Ctrl-C or SIGTERM.

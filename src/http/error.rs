@@ -68,6 +68,9 @@ const KINDS: &[(&str, StatusCode, &str)] = &[
     ("invalid-multipart", StatusCode::BAD_REQUEST, "Malformed multipart body"),
     ("missing-file", StatusCode::BAD_REQUEST, "No file in the upload"),
     ("upload-interrupted", StatusCode::BAD_REQUEST, "The upload was interrupted"),
+    ("upload-timeout", StatusCode::REQUEST_TIMEOUT, "The upload stalled"),
+    ("uri-too-long", StatusCode::URI_TOO_LONG, "URI too long"),
+    ("headers-too-large", StatusCode::REQUEST_HEADER_FIELDS_TOO_LARGE, "Request headers too large"),
     ("empty-file", StatusCode::BAD_REQUEST, "The uploaded file is empty"),
     ("unauthorized", StatusCode::UNAUTHORIZED, "Authentication required"),
     ("not-found", StatusCode::NOT_FOUND, "No such resource"),
@@ -213,6 +216,54 @@ impl ApiError {
     pub fn upload_too_large(limit: u64) -> Self {
         Self::new("upload-too-large", format!("the upload exceeds this server's limit of {limit} bytes"))
             .with("max_bytes", limit)
+    }
+
+    /// An upload that sent no bytes for `idle_secs` seconds (408).
+    pub fn upload_timeout(idle_secs: u64) -> Self {
+        Self::new("upload-timeout", format!("no upload bytes arrived for {idle_secs} s; the upload was dropped"))
+            .with("idle_timeout_secs", idle_secs)
+    }
+
+    /// A request the HTTP parser refused before any handler saw it, by the
+    /// `status` the parser chose: 414 (`uri-too-long`), 431
+    /// (`headers-too-large`), anything else `bad-request`.
+    pub fn parser_rejection(status: StatusCode) -> Self {
+        match status {
+            StatusCode::URI_TOO_LONG => Self::new("uri-too-long", "the request target exceeds this server's limit"),
+            StatusCode::REQUEST_HEADER_FIELDS_TOO_LARGE => {
+                Self::new("headers-too-large", "the request has too many or too large header fields")
+            }
+            _ => Self::new("bad-request", "the request head is malformed (e.g. control bytes in a header value)"),
+        }
+    }
+
+    /// The whole HTTP/1.1 answer (head and problem body, `Connection:
+    /// close`) as bytes, for answering below the framework; logged like any
+    /// other rejection.
+    pub fn http1_bytes(&self, request_id: &str) -> Vec<u8> {
+        tracing::info!(
+            request_id,
+            kind = self.0.kind,
+            status = self.0.status.as_u16(),
+            "request rejected by the HTTP parser"
+        );
+        let body = serde_json::to_vec(&self.body(request_id)).unwrap_or_default();
+        let status = self.0.status;
+        let mut out = format!(
+            "HTTP/1.1 {} {}\r\ncontent-type: {PROBLEM_JSON}\r\ncontent-length: {}\r\nconnection: close\r\n{REQUEST_ID_HEADER}: {request_id}\r\n\r\n",
+            status.as_u16(),
+            status.canonical_reason().unwrap_or(""),
+            body.len()
+        )
+        .into_bytes();
+        out.extend_from_slice(&body);
+        out
+    }
+
+    /// The response with `request_id` (for answers built outside a request's
+    /// task, where [`current_request_id`] is unknown).
+    pub fn into_response_for(self, request_id: &str) -> Response {
+        self.into_response_with_id(request_id)
     }
 
     /// The problem+json object of a failed job (shown inside the job

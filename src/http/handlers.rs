@@ -160,6 +160,7 @@ pub async fn submit_job(
     };
     let (q, limit, is_multipart, early_params) = match early.await {
         Ok(v) => v,
+        Err(e) if upload::expects_continue(&headers) => return Ok(upload::refuse_unsent(e)),
         Err(e) => {
             upload::drain(req.into_body().into_data_stream()).await;
             return Err(e);

@@ -8,6 +8,8 @@
 //! tracing span, and, on error, an `application/problem+json` body
 //! ([`error`]). The upload route has no framework body limit: uploads stream
 //! to disk and [`HttpLimits::max_upload_bytes`] is enforced while streaming.
+//! [`serve`] runs the accept loop of [`server`] (header and body timeouts,
+//! bounded graceful shutdown, problem+json for hyper's own rejections).
 //! This is the only module that knows axum.
 
 pub mod auth;
@@ -15,10 +17,14 @@ pub mod error;
 pub mod handlers;
 pub mod multipart_framing;
 pub mod range;
+pub mod idle_body;
+pub mod parser_answers;
+pub mod server;
 pub mod upload;
 
 use std::future::Future;
 use std::sync::Arc;
+use std::time::Duration;
 
 use axum::Router;
 use axum::extract::DefaultBodyLimit;
@@ -36,11 +42,26 @@ pub struct HttpLimits {
     pub max_upload_bytes: u64,
     /// `Retry-After` seconds sent with 429. Default 10.
     pub retry_after_secs: u64,
+    /// Longest time for a request head to arrive, and for a keep-alive
+    /// connection to stay idle (closed beyond). Default 10 s.
+    pub header_timeout: Duration,
+    /// Longest pause between two chunks of a request body (408
+    /// `upload-timeout` beyond). Default 30 s.
+    pub body_idle_timeout: Duration,
+    /// How long in-flight requests may run after shutdown is asked before
+    /// their connections are dropped. Default 10 s.
+    pub shutdown_grace: Duration,
 }
 
 impl Default for HttpLimits {
     fn default() -> Self {
-        Self { max_upload_bytes: 512 * 1024 * 1024, retry_after_secs: 10 }
+        Self {
+            max_upload_bytes: 512 * 1024 * 1024,
+            retry_after_secs: 10,
+            header_timeout: Duration::from_secs(10),
+            body_idle_timeout: Duration::from_secs(30),
+            shutdown_grace: Duration::from_secs(10),
+        }
     }
 }
 
@@ -93,7 +114,8 @@ pub fn router(state: AppState) -> Router {
         .with_state(state)
 }
 
-/// Serves the API on `listener` until `shutdown` resolves.
+/// Serves the API on `listener` until `shutdown` resolves, then lets
+/// in-flight requests finish for at most [`HttpLimits::shutdown_grace`].
 ///
 /// # Errors
 /// The listener's I/O error.
@@ -102,5 +124,6 @@ pub async fn serve(
     state: AppState,
     shutdown: impl Future<Output = ()> + Send + 'static,
 ) -> std::io::Result<()> {
-    axum::serve(listener, router(state)).with_graceful_shutdown(shutdown).await
+    let limits = state.limits.clone();
+    server::serve(listener, router(state), limits, shutdown).await
 }

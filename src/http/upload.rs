@@ -97,6 +97,21 @@ pub fn media_type(headers: &HeaderMap) -> Option<String> {
     (!mt.is_empty()).then_some(mt)
 }
 
+/// True when the client waits for `100 Continue` before sending the body.
+pub fn expects_continue(headers: &HeaderMap) -> bool {
+    headers.get(header::EXPECT).and_then(|v| v.to_str().ok()).is_some_and(|v| v.eq_ignore_ascii_case("100-continue"))
+}
+
+/// The answer to a rejected upload whose body the client has not sent (it
+/// asked `Expect: 100-continue`): the error with `Connection: close`, and
+/// the body is never polled, so no `100 Continue` goes out and the client
+/// does not upload.
+pub fn refuse_unsent(e: ApiError) -> axum::response::Response {
+    let mut resp = axum::response::IntoResponse::into_response(e);
+    resp.headers_mut().insert(header::CONNECTION, axum::http::HeaderValue::from_static("close"));
+    resp
+}
+
 /// Most bytes read and discarded after a rejected upload.
 pub const DRAIN_MAX_BYTES: u64 = 16 * 1024 * 1024;
 /// Longest time spent discarding a rejected upload.
