@@ -24,7 +24,8 @@
 //!   produces by default; not well-formed XML, so generic XML parsers cannot
 //!   open it.
 //!
-//! No compression. Output is buffered internally in 64 KiB chunks (no
+//! Binary arrays are zlib-compressed by default ([`VtuCompression`]), in
+//! VTK's block layout. Output is buffered internally in 64 KiB chunks (no
 //! `BufWriter` needed). Input is validated in full before the first byte.
 
 use crate::geom::Vec3;
@@ -69,7 +70,7 @@ pub struct VtuOptions {
     /// Binary header integer type. Default [`VtuHeaderType::UInt64`].
     pub header_type: VtuHeaderType,
     /// Compression of binary arrays (ignored for ASCII). Default
-    /// [`VtuCompression::None`].
+    /// [`VtuCompression::Zlib`].
     pub compression: VtuCompression,
 }
 
@@ -77,10 +78,10 @@ pub struct VtuOptions {
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Serialize, Deserialize)]
 pub enum VtuCompression {
     /// Plain binary.
-    #[default]
     None,
     /// `compressor="vtkZLibDataCompressor"`: each array in independently
     /// compressed zlib blocks, as VTK writes them (meshio and VTK read it).
+    #[default]
     Zlib,
 }
 
@@ -719,7 +720,7 @@ fn push_base64(buf: &mut Vec<u8>, bytes: &[u8]) -> std::io::Result<()> {
     Ok(())
 }
 
-/// Write the triangles of `mesh` with default options (raw appended, UInt64 headers).
+/// Write the triangles of `mesh` with default options (raw appended, zlib, UInt64 headers).
 ///
 /// # Errors
 /// A validation error or [`WriteError::Io`].
@@ -727,7 +728,7 @@ pub fn write_surface_vtu(w: impl Write, mesh: &TriMesh) -> Result<(), WriteError
     write_vtu(w, &VtuMesh::from_surface(mesh), &VtuOptions::default())
 }
 
-/// Write the tetrahedra of `mesh` with default options (raw appended, UInt64 headers).
+/// Write the tetrahedra of `mesh` with default options (raw appended, zlib, UInt64 headers).
 ///
 /// # Errors
 /// A validation error or [`WriteError::Io`].
@@ -819,7 +820,10 @@ mod tests {
         let m = fixtures::torus(1.0, 0.3, 6, 4);
         let mut a = Vec::new();
         write_surface_vtu(&mut a, &m).unwrap();
-        assert_eq!(a, write(&VtuMesh::from_surface(&m), VtuEncoding::Raw, VtuHeaderType::UInt64));
+        let mut b = Vec::new();
+        write_vtu(&mut b, &VtuMesh::from_surface(&m), &VtuOptions::default()).unwrap();
+        assert_eq!(a, b);
+        assert!(String::from_utf8_lossy(&a).contains("compressor=\"vtkZLibDataCompressor\""));
         let tets = TetMesh {
             positions: vec![Vec3::zeros(), Vec3::x(), Vec3::y(), Vec3::z()],
             tets: vec![[0, 1, 2, 3].map(VertexId)],
