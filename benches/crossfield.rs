@@ -42,23 +42,10 @@ fn gmsh_seconds(path: &str) -> Option<(f64, bool)> {
     let script = format!(
         "import gmsh, time\ngmsh.initialize()\ngmsh.option.setNumber('General.Terminal', 0)\ngmsh.merge({path:?})\nprint('GMSH_START', time.time(), flush=True)\nt = time.time()\ngmsh.model.mesh.computeCrossField()\nprint('GMSH_SECONDS', time.time() - t, flush=True)\ngmsh.finalize()\n"
     );
-    let out = std::process::Command::new("python3")
-        .arg("-c")
-        .arg(script)
-        .output()
-        .ok()?;
-    let end = std::time::SystemTime::now()
-        .duration_since(std::time::UNIX_EPOCH)
-        .ok()?
-        .as_secs_f64();
+    let out = std::process::Command::new("python3").arg("-c").arg(script).output().ok()?;
+    let end = std::time::SystemTime::now().duration_since(std::time::UNIX_EPOCH).ok()?.as_secs_f64();
     let text = String::from_utf8_lossy(&out.stdout);
-    let field = |key: &str| -> Option<f64> {
-        text.lines()
-            .find_map(|l| l.strip_prefix(key))?
-            .trim()
-            .parse()
-            .ok()
-    };
+    let field = |key: &str| -> Option<f64> { text.lines().find_map(|l| l.strip_prefix(key))?.trim().parse().ok() };
     match field("GMSH_SECONDS ") {
         Some(s) => Some((s, false)),
         None => field("GMSH_START ").map(|s| (end - s, true)),
@@ -68,10 +55,7 @@ fn gmsh_seconds(path: &str) -> Option<(f64, bool)> {
 fn main() {
     meshatlas::linalg::use_sequential_kernels();
     // `cargo bench` passes `--bench`; it is not ours.
-    let mut args: Vec<String> = std::env::args()
-        .skip(1)
-        .filter(|a| a != "--bench")
-        .collect();
+    let mut args: Vec<String> = std::env::args().skip(1).filter(|a| a != "--bench").collect();
     let mut opts = CrossfieldOptions::default();
     let mut gmsh = false;
     let mut verbose = false;
@@ -93,36 +77,22 @@ fn main() {
             _ => inputs.push(a),
         }
     }
-    println!(
-        "| input | triangles | meshatlas s | Newton its | singularities | χ | index sum | gmsh s | ratio |"
-    );
+    println!("| input | triangles | meshatlas s | Newton its | singularities | χ | index sum | gmsh s | ratio |");
     println!("|---|---:|---:|---:|---|---:|---:|---:|---:|");
     for input in inputs {
         let mesh = load(&input);
         let t0 = Instant::now();
         let topo = Topology::new(&mesh);
         let features = detect_features(&mesh, &topo, 40.0);
-        let field = compute_crossfield(
-            &mesh,
-            &topo,
-            &features.is_feature_edge,
-            &opts,
-            &Progress::none(),
-        )
-        .expect("crossfield");
+        let field =
+            compute_crossfield(&mesh, &topo, &features.is_feature_edge, &opts, &Progress::none()).expect("crossfield");
         let secs = t0.elapsed().as_secs_f64();
-        let counts: Vec<String> = field
-            .report
-            .singularity_counts
-            .iter()
-            .map(|(k, v)| format!("{v}×{k}"))
-            .collect();
+        let counts: Vec<String> = field.report.singularity_counts.iter().map(|(k, v)| format!("{v}×{k}")).collect();
         let (g, ratio) = if gmsh && !input.contains(':') {
             match gmsh_seconds(&input) {
-                Some((g, crashed)) => (
-                    format!("{g:.2}{}", if crashed { "*" } else { "" }),
-                    format!("{:.0}×", g / secs),
-                ),
+                Some((g, crashed)) => {
+                    (format!("{g:.2}{}", if crashed { "*" } else { "" }), format!("{:.0}×", g / secs))
+                }
                 None => ("n/a".into(), "".into()),
             }
         } else {
@@ -150,13 +120,7 @@ fn main() {
             for l in &field.report.levels {
                 eprintln!(
                     "  level {} faces {} edges {} eps {:?} its {} factorizations {} {:.3} s",
-                    l.level,
-                    l.n_faces,
-                    l.n_edges,
-                    l.epsilon_schedule,
-                    l.iterations,
-                    l.n_factorizations,
-                    l.seconds
+                    l.level, l.n_faces, l.n_edges, l.epsilon_schedule, l.iterations, l.n_factorizations, l.seconds
                 );
             }
             for h in &field.report.history {

@@ -32,8 +32,10 @@ fn main() {
     for n in targets {
         let h = (12.0 * volume / n).cbrt();
         // FRAMES_SOLVER=cholesky|pcg forces the linear solver (default: automatic).
-        let linear_solver = std::env::var("FRAMES_SOLVER").ok().and_then(|s| serde_json::from_str(&format!("\"{s}\"")).ok());
-        let opts = FramesOptions { target_size: Some(h), max_tets: (2.0 * n) as usize, linear_solver, ..Default::default() };
+        let linear_solver =
+            std::env::var("FRAMES_SOLVER").ok().and_then(|s| serde_json::from_str(&format!("\"{s}\"")).ok());
+        let opts =
+            FramesOptions { target_size: Some(h), max_tets: (2.0 * n) as usize, linear_solver, ..Default::default() };
         let t = Instant::now();
         let field = match compute_frame_field(&sphere, None, &opts, &Progress::none()) {
             Ok(f) => f,
@@ -55,12 +57,31 @@ fn main() {
         let s = &r.seconds;
         println!(
             "  volume {:.2} s, constraints {:.2}, operators {:.2}, field {:.2} (factor {:.2}, solve {:.2}, project {:.2}), invariants {:.2}, tet frames {:.2}, singular {:.2}",
-            s.volume, s.constraints, s.operators, s.field, s.factor, s.solve, s.project, s.invariants, s.tet_frames, s.singular
+            s.volume,
+            s.constraints,
+            s.operators,
+            s.field,
+            s.factor,
+            s.solve,
+            s.project,
+            s.invariants,
+            s.tet_frames,
+            s.singular
         );
         println!(
             "  {:?}, {} PCG iterations, {} levels, {} steps, energy {:.4} -> {:.4}; singular: {} valence 3, {} valence 5, {} complex, {} curves, {} dangling; min dihedral {:.1} deg",
-            r.linear_solver, r.pcg_iterations, r.levels, r.iterations, r.energy_before, r.energy_after, r.singular.n_valence3, r.singular.n_valence5, r.singular.n_complex,
-            r.singular.n_curves, r.singular.n_dangling_interior_ends, r.volume.min_dihedral_deg
+            r.linear_solver,
+            r.pcg_iterations,
+            r.levels,
+            r.iterations,
+            r.energy_before,
+            r.energy_after,
+            r.singular.n_valence3,
+            r.singular.n_valence5,
+            r.singular.n_complex,
+            r.singular.n_curves,
+            r.singular.n_dangling_interior_ends,
+            r.volume.min_dihedral_deg
         );
     }
 }

@@ -54,24 +54,12 @@ impl std::fmt::Debug for Progress {
 impl Progress {
     /// A handle that reports nowhere and is never cancelled (tests, library use).
     pub fn none() -> Self {
-        Self {
-            sink: None,
-            cancel: Arc::new(AtomicBool::new(false)),
-            stage: Arc::from(""),
-            lo: 0.0,
-            hi: 1.0,
-        }
+        Self { sink: None, cancel: Arc::new(AtomicBool::new(false)), stage: Arc::from(""), lo: 0.0, hi: 1.0 }
     }
 
     /// A handle reporting to `sink`, cancelled when `cancel` becomes true.
     pub fn new(sink: Arc<dyn ProgressSink>, cancel: Arc<AtomicBool>) -> Self {
-        Self {
-            sink: Some(sink),
-            cancel,
-            stage: Arc::from(""),
-            lo: 0.0,
-            hi: 1.0,
-        }
+        Self { sink: Some(sink), cancel, stage: Arc::from(""), lo: 0.0, hi: 1.0 }
     }
 
     /// A child handle for stage `name` covering the local range `[lo, hi]`
@@ -121,11 +109,7 @@ impl Progress {
     /// # Errors
     /// [`Cancelled`] when the cancel flag is set.
     pub fn check(&self) -> Result<(), Cancelled> {
-        if self.is_cancelled() {
-            Err(Cancelled)
-        } else {
-            Ok(())
-        }
+        if self.is_cancelled() { Err(Cancelled) } else { Ok(()) }
     }
 
     /// The flag this handle polls, for owners that need to set it.
@@ -160,14 +144,7 @@ mod tests {
         s.sub(0.0, 0.5).set(1.0);
         s.set(2.0);
         let got = rec.0.lock().unwrap().clone();
-        assert_eq!(
-            got,
-            vec![
-                ("atlas".into(), 0.5),
-                ("atlas".into(), 0.75),
-                ("atlas".into(), 1.0)
-            ]
-        );
+        assert_eq!(got, vec![("atlas".into(), 0.5), ("atlas".into(), 0.75), ("atlas".into(), 1.0)]);
         assert!(s.check().is_ok());
         cancel.store(true, Ordering::Relaxed);
         assert_eq!(s.check(), Err(Cancelled));

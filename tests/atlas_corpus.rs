@@ -66,7 +66,8 @@ fn corpus_case(file: &str) {
     let path = shared_data().join("corpus").join(file);
     let loaded = load_path(&path, None, &LoadOptions::default()).unwrap_or_else(|e| panic!("{file}: {e}"));
     let mesh = loaded.surface;
-    let atlas = build_atlas(&mesh, &AtlasOptions::default(), &Progress::none()).unwrap_or_else(|e| panic!("{file}: {e}"));
+    let atlas =
+        build_atlas(&mesh, &AtlasOptions::default(), &Progress::none()).unwrap_or_else(|e| panic!("{file}: {e}"));
     check_atlas(file, &mesh, &atlas);
     let dir = scratch("atlas_corpus", file);
     let msh = dir.join("atlas.msh");

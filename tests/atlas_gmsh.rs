@@ -9,9 +9,7 @@
 mod common;
 
 use common::{path_str, python, scratch};
-use meshatlas::atlas::{
-    Atlas, AtlasOptions, build_atlas, write_atlas_msh, write_atlas_uv_vtu, write_atlas_vtu,
-};
+use meshatlas::atlas::{Atlas, AtlasOptions, build_atlas, write_atlas_msh, write_atlas_uv_vtu, write_atlas_vtu};
 use meshatlas::mesh::{TriMesh, fixtures};
 use meshatlas::progress::Progress;
 use std::fs::File;
@@ -55,134 +53,60 @@ print(json.dumps(out))
 "#;
 
 fn write_all(atlas: &Atlas, dir: &Path) {
-    write_atlas_msh(
-        atlas,
-        BufWriter::new(File::create(dir.join("atlas.msh")).unwrap()),
-    )
-    .unwrap();
-    write_atlas_vtu(
-        atlas,
-        BufWriter::new(File::create(dir.join("atlas.vtu")).unwrap()),
-    )
-    .unwrap();
-    write_atlas_uv_vtu(
-        atlas,
-        BufWriter::new(File::create(dir.join("atlas_uv.vtu")).unwrap()),
-    )
-    .unwrap();
+    write_atlas_msh(atlas, BufWriter::new(File::create(dir.join("atlas.msh")).unwrap())).unwrap();
+    write_atlas_vtu(atlas, BufWriter::new(File::create(dir.join("atlas.vtu")).unwrap())).unwrap();
+    write_atlas_uv_vtu(atlas, BufWriter::new(File::create(dir.join("atlas_uv.vtu")).unwrap())).unwrap();
 }
 
 /// Build, write and remesh; `on_surface` is the distance of a point to the
 /// exact surface. Returns the atlas for further checks.
-fn remesh_check(
-    name: &str,
-    mesh: &TriMesh,
-    h: f64,
-    on_surface: impl Fn([f64; 3]) -> f64,
-    tol: f64,
-) -> Atlas {
+fn remesh_check(name: &str, mesh: &TriMesh, h: f64, on_surface: impl Fn([f64; 3]) -> f64, tol: f64) -> Atlas {
     let atlas = build_atlas(mesh, &AtlasOptions::default(), &Progress::none()).unwrap();
     let dir = scratch("atlas_gmsh", name);
     write_all(&atlas, &dir);
     let msh = dir.join("atlas.msh");
     let r = python(REMESH, &[path_str(&msh), &h.to_string()]);
-    assert_eq!(
-        r["entities"]["2"].as_u64().unwrap() as usize,
-        atlas.patches.len(),
-        "{name}: surfaces"
-    );
-    assert_eq!(
-        r["entities"]["1"].as_u64().unwrap() as usize,
-        atlas.curves.len(),
-        "{name}: curves"
-    );
-    assert_eq!(
-        r["entities"]["0"].as_u64().unwrap() as usize,
-        atlas.corners.len(),
-        "{name}: points"
-    );
-    let per_surface: Vec<u64> = r["triangles_per_surface"]
-        .as_array()
-        .unwrap()
-        .iter()
-        .map(|v| v.as_u64().unwrap())
-        .collect();
-    assert!(
-        per_surface.iter().all(|&n| n > 0),
-        "{name}: a patch was not remeshed: {per_surface:?}"
-    );
+    assert_eq!(r["entities"]["2"].as_u64().unwrap() as usize, atlas.patches.len(), "{name}: surfaces");
+    assert_eq!(r["entities"]["1"].as_u64().unwrap() as usize, atlas.curves.len(), "{name}: curves");
+    assert_eq!(r["entities"]["0"].as_u64().unwrap() as usize, atlas.corners.len(), "{name}: points");
+    let per_surface: Vec<u64> =
+        r["triangles_per_surface"].as_array().unwrap().iter().map(|v| v.as_u64().unwrap()).collect();
+    assert!(per_surface.iter().all(|&n| n > 0), "{name}: a patch was not remeshed: {per_surface:?}");
     let worst = r["nodes"]
         .as_array()
         .unwrap()
         .iter()
         .map(|p| {
-            let c: Vec<f64> = p
-                .as_array()
-                .unwrap()
-                .iter()
-                .map(|x| x.as_f64().unwrap())
-                .collect();
+            let c: Vec<f64> = p.as_array().unwrap().iter().map(|x| x.as_f64().unwrap()).collect();
             on_surface([c[0], c[1], c[2]])
         })
         .fold(0.0, f64::max);
-    assert!(
-        worst < tol,
-        "{name}: remeshed node {worst} away from the surface"
-    );
-    assert!(
-        r["min_quality"].as_f64().unwrap() > 0.0,
-        "{name}: inverted remeshed triangle"
-    );
+    assert!(worst < tol, "{name}: remeshed node {worst} away from the surface");
+    assert!(r["min_quality"].as_f64().unwrap() > 0.0, "{name}: inverted remeshed triangle");
 
     let vtu = dir.join("atlas.vtu");
     let uv = dir.join("atlas_uv.vtu");
     let m = python(MESHIO, &[path_str(&vtu), path_str(&uv)]);
     let a = &m[path_str(&vtu)];
-    assert_eq!(
-        a["cells"]["triangle"].as_u64().unwrap() as usize,
-        atlas.mesh.n_faces()
-    );
-    assert_eq!(
-        a["points"].as_u64().unwrap() as usize,
-        atlas.mesh.n_vertices()
-    );
+    assert_eq!(a["cells"]["triangle"].as_u64().unwrap() as usize, atlas.mesh.n_faces());
+    assert_eq!(a["points"].as_u64().unwrap() as usize, atlas.mesh.n_vertices());
     for key in ["patch", "sigma_ratio", "feature_curve"] {
-        assert!(
-            a["cell_data"].as_array().unwrap().iter().any(|k| k == key),
-            "{name}: missing cell data {key}"
-        );
+        assert!(a["cell_data"].as_array().unwrap().iter().any(|k| k == key), "{name}: missing cell data {key}");
     }
-    for key in [
-        "curvature_max",
-        "curvature_min",
-        "direction_max",
-        "direction_min",
-    ] {
-        assert!(
-            a["point_data"].as_array().unwrap().iter().any(|k| k == key),
-            "{name}: missing point data {key}"
-        );
+    for key in ["curvature_max", "curvature_min", "direction_max", "direction_min"] {
+        assert!(a["point_data"].as_array().unwrap().iter().any(|k| k == key), "{name}: missing point data {key}");
     }
     let u = &m[path_str(&uv)];
     let n_uv: usize = atlas.patches.iter().map(|p| p.uv.len()).sum();
     assert_eq!(u["points"].as_u64().unwrap() as usize, n_uv);
-    assert_eq!(
-        u["cells"]["triangle"].as_u64().unwrap() as usize,
-        atlas.mesh.n_faces()
-    );
+    assert_eq!(u["cells"]["triangle"].as_u64().unwrap() as usize, atlas.mesh.n_faces());
     atlas
 }
 
 #[test]
 fn sphere_atlas_is_remeshed_by_gmsh() {
     let m = fixtures::icosphere(4);
-    let a = remesh_check(
-        "sphere",
-        &m,
-        0.15,
-        |p| ((p[0] * p[0] + p[1] * p[1] + p[2] * p[2]).sqrt() - 1.0).abs(),
-        0.01,
-    );
+    let a = remesh_check("sphere", &m, 0.15, |p| ((p[0] * p[0] + p[1] * p[1] + p[2] * p[2]).sqrt() - 1.0).abs(), 0.01);
     assert!(a.patches.len() >= 2);
 }
 
@@ -205,17 +129,8 @@ fn torus_atlas_is_remeshed_by_gmsh() {
 #[test]
 fn cube_atlas_is_remeshed_by_gmsh() {
     let m = fixtures::cube(6);
-    let a = remesh_check(
-        "cube",
-        &m,
-        0.3,
-        |p| (p.iter().fold(0.0f64, |a, x| a.max(x.abs())) - 1.0).abs(),
-        1e-9,
-    );
-    assert_eq!(
-        (a.patches.len(), a.curves.len(), a.corners.len()),
-        (6, 12, 8)
-    );
+    let a = remesh_check("cube", &m, 0.3, |p| (p.iter().fold(0.0f64, |a, x| a.max(x.abs())) - 1.0).abs(), 1e-9);
+    assert_eq!((a.patches.len(), a.curves.len(), a.corners.len()), (6, 12, 8));
 }
 
 #[test]

@@ -53,7 +53,8 @@ const CORPUS: &[Expect] = &[
 
 /// The two files whose cracks close only with the tolerance weld, as INDEX
 /// describes them after an exact weld: (file, verts, boundary loops, χ, genus).
-const EXACT_ONLY: &[(&str, usize, usize, i64, i64)] = &[("gmsh_object.stl", 359, 2, 0, 0), ("featuretype.stl", 2010, 16, -16, 1)];
+const EXACT_ONLY: &[(&str, usize, usize, i64, i64)] =
+    &[("gmsh_object.stl", 359, 2, 0, 0), ("featuretype.stl", 2010, 16, -16, 1)];
 
 fn corpus_dir() -> PathBuf {
     let dir = PathBuf::from(std::env::var("MESHATLAS_CORPUS").unwrap_or_else(|_| "/work/shared/data/corpus".into()));
@@ -120,10 +121,14 @@ fn every_corpus_file_loads_as_indexed() {
             failures.push(format!("{}: got {got:?}, want {want:?}", e.file));
         }
         // Nothing removed, everything consistent, closed surfaces outward.
-        let removed = r.n_zero_area_triangles_removed + r.n_degenerate_triangles_removed + r.n_duplicate_triangles_removed;
+        let removed =
+            r.n_zero_area_triangles_removed + r.n_degenerate_triangles_removed + r.n_duplicate_triangles_removed;
         let topo = Topology::new(&l.surface);
         if removed != 0 || r.n_input_triangles != e.tris || n_inconsistent_edges(&l.surface, &topo) != 0 {
-            failures.push(format!("{}: removed {removed}, inconsistent orientation or input count {}", e.file, r.n_input_triangles));
+            failures.push(format!(
+                "{}: removed {removed}, inconsistent orientation or input count {}",
+                e.file, r.n_input_triangles
+            ));
         }
         if e.closed && l.surface.signed_volume() <= 0.0 {
             failures.push(format!("{}: closed but signed volume {}", e.file, l.surface.signed_volume()));
@@ -144,7 +149,14 @@ fn cracks_stay_open_with_the_exact_weld_only() {
         let l = load_path(&dir.join(file), None, &exact).unwrap();
         let r = &l.repair;
         assert_eq!(
-            (l.surface.n_vertices(), r.n_boundary_loops, r.euler_characteristic, r.genus, r.closed, r.weld_tolerance_abs),
+            (
+                l.surface.n_vertices(),
+                r.n_boundary_loops,
+                r.euler_characteristic,
+                r.genus,
+                r.closed,
+                r.weld_tolerance_abs
+            ),
             (verts, loops, chi, Some(genus), false, 0.0),
             "{file}"
         );
@@ -158,6 +170,11 @@ fn stl_corner_counts_and_exact_welds_add_up() {
         let l = load_path(&dir.join(e.file), None, &LoadOptions::default()).unwrap();
         let r = &l.repair;
         assert_eq!(r.n_input_vertices, 3 * e.tris, "{}", e.file);
-        assert_eq!(r.n_input_vertices - r.n_vertices_welded_exact - r.n_vertices_welded_tolerance, e.verts, "{}", e.file);
+        assert_eq!(
+            r.n_input_vertices - r.n_vertices_welded_exact - r.n_vertices_welded_tolerance,
+            e.verts,
+            "{}",
+            e.file
+        );
     }
 }

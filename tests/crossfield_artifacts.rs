@@ -4,8 +4,7 @@
 mod common;
 
 use meshatlas::crossfield::{
-    CrossfieldOptions, compute_crossfield, write_crossfield_msh, write_crossfield_vtu,
-    write_singularities_json,
+    CrossfieldOptions, compute_crossfield, write_crossfield_msh, write_crossfield_vtu, write_singularities_json,
 };
 use meshatlas::mesh::{EdgeId, Topology, fixtures};
 use meshatlas::progress::Progress;
@@ -15,23 +14,10 @@ use std::fs::File;
 fn artifacts_open_in_meshio_and_gmsh() {
     let mesh = fixtures::disk(8);
     let topo = Topology::new(&mesh);
-    let aligned: Vec<bool> = (0..topo.n_edges())
-        .map(|e| topo.is_boundary_edge(EdgeId::new(e)))
-        .collect();
-    let field = compute_crossfield(
-        &mesh,
-        &topo,
-        &aligned,
-        &CrossfieldOptions::default(),
-        &Progress::none(),
-    )
-    .unwrap();
+    let aligned: Vec<bool> = (0..topo.n_edges()).map(|e| topo.is_boundary_edge(EdgeId::new(e))).collect();
+    let field = compute_crossfield(&mesh, &topo, &aligned, &CrossfieldOptions::default(), &Progress::none()).unwrap();
     let dir = common::scratch("crossfield_artifacts", "disk");
-    let (vtu, msh, json) = (
-        dir.join("crossfield.vtu"),
-        dir.join("crossfield.msh"),
-        dir.join("singularities.json"),
-    );
+    let (vtu, msh, json) = (dir.join("crossfield.vtu"), dir.join("crossfield.msh"), dir.join("singularities.json"));
     write_crossfield_vtu(&field, &mesh, File::create(&vtu).unwrap()).unwrap();
     write_crossfield_msh(&field, &mesh, File::create(&msh).unwrap()).unwrap();
     write_singularities_json(&field, File::create(&json).unwrap()).unwrap();
@@ -59,14 +45,7 @@ print(json.dumps({
   'views': views, 'n_gmsh_tri': int(sum(len(e) for e in etags)),
   'json_sum': s['index_sum'], 'json_n': len(s['singularities'])}))
 "#;
-    let out = common::python(
-        script,
-        &[
-            common::path_str(&vtu),
-            common::path_str(&msh),
-            common::path_str(&json),
-        ],
-    );
+    let out = common::python(script, &[common::path_str(&vtu), common::path_str(&msh), common::path_str(&json)]);
     assert_eq!(out["n_tri"], mesh.n_faces());
     assert_eq!(out["n_pts"], mesh.n_vertices());
     assert!(out["u_unit"].as_f64().unwrap() < 1e-12);
@@ -78,12 +57,7 @@ print(json.dumps({
     assert_eq!(u[0], "ElementData");
     assert_eq!(u[1], mesh.n_faces());
     assert_eq!(u[2], 3);
-    let first: Vec<f64> = u[3]
-        .as_array()
-        .unwrap()
-        .iter()
-        .map(|x| x.as_f64().unwrap())
-        .collect();
+    let first: Vec<f64> = u[3].as_array().unwrap().iter().map(|x| x.as_f64().unwrap()).collect();
     let want = field.cross_per_face[0];
     assert!((first[0] - want.x).abs() < 1e-12 && (first[1] - want.y).abs() < 1e-12);
     assert_eq!(out["views"]["norm"][2], 1);

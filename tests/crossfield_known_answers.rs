@@ -16,14 +16,7 @@ use meshatlas::progress::Progress;
 fn crossfield(mesh: &TriMesh, opts: &CrossfieldOptions) -> Crossfield {
     let topo = Topology::new(mesh);
     let features = detect_features(mesh, &topo, 40.0);
-    compute_crossfield(
-        mesh,
-        &topo,
-        &features.is_feature_edge,
-        opts,
-        &Progress::none(),
-    )
-    .expect("crossfield")
+    compute_crossfield(mesh, &topo, &features.is_feature_edge, opts, &Progress::none()).expect("crossfield")
 }
 
 /// Poincaré–Hopf (3.13): the index sum equals χ.
@@ -100,25 +93,15 @@ fn unit_disk_has_four_singularities_on_the_optimal_circle() {
         let field = crossfield(&mesh, &CrossfieldOptions::default());
         assert_poincare_hopf(&field);
         assert!(field.report.converged, "{:?}", field.report.final_residual);
-        let interior: Vec<_> = field
-            .singularities
-            .iter()
-            .filter(|s| s.position.norm() < 1.0 - 1e-9)
-            .collect();
+        let interior: Vec<_> = field.singularities.iter().filter(|s| s.position.norm() < 1.0 - 1e-9).collect();
         assert_eq!(interior.len(), 4, "{:?}", field.singularities);
         assert!(interior.iter().all(|s| s.index == 0.25));
         let h = 1.0 / rings as f64;
-        let err = interior
-            .iter()
-            .map(|s| (s.position.norm() - r_star).abs())
-            .fold(0.0, f64::max);
+        let err = interior.iter().map(|s| (s.position.norm() - r_star).abs()).fold(0.0, f64::max);
         // Tolerance shrinks with h (ε = 2h by default).
         assert!(err < 0.06 + 1.5 * h, "rings {rings}: max |r − r*| = {err}");
         // Square pattern: consecutive angles 90° apart.
-        let mut ang: Vec<f64> = interior
-            .iter()
-            .map(|s| s.position.y.atan2(s.position.x))
-            .collect();
+        let mut ang: Vec<f64> = interior.iter().map(|s| s.position.y.atan2(s.position.x)).collect();
         ang.sort_by(f64::total_cmp);
         for k in 0..4 {
             let d = (ang[(k + 1) % 4] - ang[k]).rem_euclid(std::f64::consts::TAU);
@@ -126,19 +109,12 @@ fn unit_disk_has_four_singularities_on_the_optimal_circle() {
         }
         errors.push(err);
     }
-    assert!(
-        errors[1] <= errors[0] + 0.01,
-        "error does not shrink: {errors:?}"
-    );
+    assert!(errors[1] <= errors[0] + 0.01, "error does not shrink: {errors:?}");
 }
 
 /// [`neighbour_distances`] of the singularities projected on the unit sphere.
 fn singularity_distances(field: &Crossfield) -> Vec<Vec<f64>> {
-    let p: Vec<Vec3> = field
-        .singularities
-        .iter()
-        .map(|s| s.position.normalize())
-        .collect();
+    let p: Vec<Vec3> = field.singularities.iter().map(|s| s.position.normalize()).collect();
     neighbour_distances(&p)
 }
 
@@ -146,11 +122,7 @@ fn singularity_distances(field: &Crossfield) -> Vec<Vec<f64>> {
 fn neighbour_distances(p: &[Vec3]) -> Vec<Vec<f64>> {
     p.iter()
         .map(|a| {
-            let mut d: Vec<f64> = p
-                .iter()
-                .filter(|b| *b != a)
-                .map(|b| (a - b).norm())
-                .collect();
+            let mut d: Vec<f64> = p.iter().filter(|b| *b != a).map(|b| (a - b).norm()).collect();
             d.sort_by(f64::total_cmp);
             d
         })
@@ -185,11 +157,7 @@ fn optimal_antiprism_distances() -> Vec<f64> {
     let g = (5f64.sqrt() - 1.0) / 2.0;
     for _ in 0..200 {
         let (a, b) = (hi - g * (hi - lo), lo + g * (hi - lo));
-        if energy(a) < energy(b) {
-            hi = b
-        } else {
-            lo = a
-        }
+        if energy(a) < energy(b) { hi = b } else { lo = a }
     }
     neighbour_distances(&pts(0.5 * (lo + hi))).remove(0)
 }
@@ -198,10 +166,7 @@ fn optimal_antiprism_distances() -> Vec<f64> {
 fn unit_sphere_crosses_sit_on_a_square_antiprism() {
     // Ideal: 1.1669 ×2, 1.2945 ×2, 1.6502, 1.8977 ×2 (a cube: 1.1547 ×3, 1.633 ×3, 2).
     let ideal = optimal_antiprism_distances();
-    assert!(
-        (ideal[0] - 1.1669).abs() < 1e-3 && (ideal[4] - 1.6502).abs() < 1e-3,
-        "{ideal:?}"
-    );
+    assert!((ideal[0] - 1.1669).abs() < 1e-3 && (ideal[4] - 1.6502).abs() < 1e-3, "{ideal:?}");
     for level in [3, 4] {
         let mesh = fixtures::icosphere(level);
         let field = crossfield(&mesh, &CrossfieldOptions::default());
@@ -216,12 +181,7 @@ fn unit_sphere_crosses_sit_on_a_square_antiprism() {
 /// antiprism, within 0.06.
 fn assert_square_antiprism(field: &Crossfield, ideal: Option<&[f64]>, what: &str) {
     assert_poincare_hopf(field);
-    assert_eq!(
-        field.singularities.len(),
-        8,
-        "{what}: {:?}",
-        field.report.singularity_counts
-    );
+    assert_eq!(field.singularities.len(), 8, "{what}: {:?}", field.report.singularity_counts);
     assert!(field.singularities.iter().all(|s| s.index == 0.25));
     for d in singularity_distances(field) {
         assert!(d[3] / d[0] < 1.2, "{what}: {d:?}");
@@ -236,24 +196,11 @@ fn assert_square_antiprism(field: &Crossfield, ideal: Option<&[f64]>, what: &str
 fn unit_sphere_asterisks_sit_on_an_icosahedron() {
     for level in [3, 4] {
         let mesh = fixtures::icosphere(level);
-        let opts = CrossfieldOptions {
-            symmetry: 6,
-            ..Default::default()
-        };
+        let opts = CrossfieldOptions { symmetry: 6, ..Default::default() };
         let field = crossfield(&mesh, &opts);
         assert_poincare_hopf(&field);
-        assert_eq!(
-            field.singularities.len(),
-            12,
-            "{:?}",
-            field.report.singularity_counts
-        );
-        assert!(
-            field
-                .singularities
-                .iter()
-                .all(|s| (s.index - 1.0 / 6.0).abs() < 1e-12)
-        );
+        assert_eq!(field.singularities.len(), 12, "{:?}", field.report.singularity_counts);
+        assert!(field.singularities.iter().all(|s| (s.index - 1.0 / 6.0).abs() < 1e-12));
         for d in singularity_distances(&field) {
             // Icosahedron: 5 neighbours at the edge length 1.0515, the next at 1.7013.
             assert!(d[4] / d[0] < 1.1, "{d:?}");
@@ -266,10 +213,7 @@ fn unit_sphere_asterisks_sit_on_an_icosahedron() {
 fn torus_has_no_singularity() {
     // ε = h (default): on these resolutions the singularity-free field has the
     // lower GL energy (at ε ≳ 0.07 twelve ±1/4 vortices still win, as in the thesis).
-    let mut meshes = vec![(
-        "torus 140×56".to_string(),
-        fixtures::torus(1.0, 0.4, 140, 56),
-    )];
+    let mut meshes = vec![("torus 140×56".to_string(), fixtures::torus(1.0, 0.4, 140, 56))];
     if let Some(p) = crossfield_common::data_path("gmsh/torus_20k.stl") {
         meshes.push(("torus_20k.stl".into(), crossfield_common::load(&p)));
     }
@@ -299,23 +243,10 @@ fn l_shape_strong_boundary_indices_are_at_the_corners() {
         let mut got: Vec<(i64, i64, f64)> = field
             .singularities
             .iter()
-            .map(|s| {
-                (
-                    (s.position.x * 2.0).round() as i64,
-                    (s.position.y * 2.0).round() as i64,
-                    s.index,
-                )
-            })
+            .map(|s| ((s.position.x * 2.0).round() as i64, (s.position.y * 2.0).round() as i64, s.index))
             .collect();
         got.sort_by(|a, b| a.partial_cmp(b).unwrap());
-        let want = vec![
-            (0, 0, 0.25),
-            (0, 4, 0.25),
-            (2, 2, -0.25),
-            (2, 4, 0.25),
-            (4, 0, 0.25),
-            (4, 2, 0.25),
-        ];
+        let want = vec![(0, 0, 0.25), (0, 4, 0.25), (2, 2, -0.25), (2, 4, 0.25), (4, 0, 0.25), (4, 2, 0.25)];
         assert_eq!(got, want, "n = {n}");
         assert!(field.report.energy < 1e-12);
     }
@@ -347,29 +278,17 @@ fn cad_parts_with_feature_edges_satisfy_poincare_hopf() {
         // Singularities are few: the field is smooth between the features.
         // (The cylinder's caps are disks: 4 × 1/4 each, nothing on the side.)
         if mesh.n_faces() == 416 {
-            assert_eq!(
-                field.report.singularity_counts.get("0.25"),
-                Some(&8),
-                "{:?}",
-                field.report.singularity_counts
-            );
+            assert_eq!(field.report.singularity_counts.get("0.25"), Some(&8), "{:?}", field.report.singularity_counts);
             assert_eq!(field.singularities.len(), 8);
         }
-        assert!(
-            field.singularities.len() < 100,
-            "{:?}",
-            field.report.singularity_counts
-        );
+        assert!(field.singularities.len() < 100, "{:?}", field.report.singularity_counts);
     }
 }
 
 #[test]
 fn weak_boundary_condition_on_the_disk() {
     let mesh = fixtures::disk(12);
-    let opts = CrossfieldOptions {
-        boundary: BoundaryCondition::Weak,
-        ..Default::default()
-    };
+    let opts = CrossfieldOptions { boundary: BoundaryCondition::Weak, ..Default::default() };
     let field = crossfield(&mesh, &opts);
     assert_poincare_hopf(&field);
     assert!(field.report.converged);
@@ -387,10 +306,7 @@ fn weak_boundary_condition_on_the_disk() {
 
 /// Multilevel options: coarsen from `min_faces` triangles on.
 fn multilevel(min_faces: usize) -> CrossfieldOptions {
-    CrossfieldOptions {
-        multilevel_min_faces: min_faces,
-        ..Default::default()
-    }
+    CrossfieldOptions { multilevel_min_faces: min_faces, ..Default::default() }
 }
 
 #[test]
@@ -398,22 +314,13 @@ fn multilevel_continuation_finds_the_single_level_answer_on_the_disk() {
     let mesh = fixtures::disk(80);
     let n = mesh.n_faces();
     let multi = crossfield(&mesh, &multilevel(20_000));
-    let single = crossfield(
-        &mesh,
-        &CrossfieldOptions {
-            multilevel: false,
-            ..Default::default()
-        },
-    );
+    let single = crossfield(&mesh, &CrossfieldOptions { multilevel: false, ..Default::default() });
     // Two levels: a coarse one (about n/16 triangles, ε ≥ 4h) and the input.
     let levels = &multi.report.levels;
     assert_eq!(levels.len(), 2, "{levels:?}");
     assert_eq!((levels[0].level, levels[1].level), (1, 0));
     assert_eq!(levels[1].n_faces, n);
-    assert!(
-        levels[0].n_faces > n / 25 && levels[0].n_faces < n / 10,
-        "{levels:?}"
-    );
+    assert!(levels[0].n_faces > n / 25 && levels[0].n_faces < n / 10, "{levels:?}");
     assert!(levels[0].epsilon_schedule.last() > levels[1].epsilon_schedule.first());
     assert_eq!(single.report.levels.len(), 1);
     assert!(multi.report.history.iter().any(|r| r.level == 1));
@@ -429,13 +336,7 @@ fn multilevel_continuation_finds_the_single_level_answer_on_the_disk() {
             assert!((s.position.norm() - r_star).abs() < 2.0 * h, "{s:?}");
         }
     }
-    let radius = |f: &Crossfield| {
-        f.singularities
-            .iter()
-            .map(|s| s.position.norm())
-            .sum::<f64>()
-            / 4.0
-    };
+    let radius = |f: &Crossfield| f.singularities.iter().map(|s| s.position.norm()).sum::<f64>() / 4.0;
     assert!((radius(&multi) - radius(&single)).abs() < h);
 }
 

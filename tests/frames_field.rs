@@ -20,7 +20,9 @@ fn max_deviation_deg(quats: &[[f64; 4]], r: &Mat3) -> f64 {
             let m = Quat(*q).to_matrix();
             // Quaternion angle: accurate for small angles (acos of the
             // trace is not below ~1e-6°).
-            rots.iter().map(|o| Quat::from_matrix(&(r.transpose() * m * o)).angle().to_degrees()).fold(f64::INFINITY, f64::min)
+            rots.iter()
+                .map(|o| Quat::from_matrix(&(r.transpose() * m * o)).angle().to_degrees())
+                .fold(f64::INFINITY, f64::min)
         })
         .fold(0.0, f64::max)
 }
@@ -92,7 +94,8 @@ fn structured_cube(n: usize) -> TetMesh {
 #[test]
 fn uploaded_volume_is_used_as_is() {
     let vol = structured_cube(4);
-    let field = compute_frame_field(&fixtures::cube(4), Some(&vol), &FramesOptions::default(), &Progress::none()).unwrap();
+    let field =
+        compute_frame_field(&fixtures::cube(4), Some(&vol), &FramesOptions::default(), &Progress::none()).unwrap();
     assert_eq!(field.volume, vol);
     assert_eq!(field.report.volume.source, "uploaded");
     // Edges and corners of the cube are feature vertices with fixed frames.
@@ -106,11 +109,13 @@ fn uploaded_volume_is_used_as_is() {
 fn uploaded_volume_with_an_unused_vertex_or_no_tet() {
     let mut vol = structured_cube(3);
     vol.positions.push(Vec3::new(5.0, 5.0, 5.0));
-    let field = compute_frame_field(&fixtures::cube(3), Some(&vol), &FramesOptions::default(), &Progress::none()).unwrap();
+    let field =
+        compute_frame_field(&fixtures::cube(3), Some(&vol), &FramesOptions::default(), &Progress::none()).unwrap();
     assert_eq!(field.quaternion_per_vertex.len(), vol.n_vertices());
     assert!(max_deviation_deg(&field.quaternion_per_vertex, &Mat3::identity()) < 1e-6);
     let empty = TetMesh { positions: vol.positions.clone(), tets: Vec::new() };
-    let err = compute_frame_field(&fixtures::cube(3), Some(&empty), &FramesOptions::default(), &Progress::none()).unwrap_err();
+    let err = compute_frame_field(&fixtures::cube(3), Some(&empty), &FramesOptions::default(), &Progress::none())
+        .unwrap_err();
     assert!(matches!(err, FramesError::EmptyVolume));
 }
 
@@ -123,13 +128,23 @@ fn ball_has_singular_curves_ending_on_the_boundary() {
     let s = &rep.singular;
     println!(
         "ball: {} tets, energy {:.4} → {:.4} in {} steps; singular: {} valence 3, {} valence 5, {} complex, {} curves, {} branch vertices",
-        rep.tets, rep.energy_before, rep.energy_after, rep.iterations, s.n_valence3, s.n_valence5, s.n_complex, s.n_curves, s.n_branch_vertices
+        rep.tets,
+        rep.energy_before,
+        rep.energy_after,
+        rep.iterations,
+        s.n_valence3,
+        s.n_valence5,
+        s.n_complex,
+        s.n_curves,
+        s.n_branch_vertices
     );
     assert!(!field.singular_edges.is_empty(), "a ball must have singular edges");
     assert_eq!(s.n_dangling_interior_ends, 0);
     assert_eq!(s.n_isolated_edges, 0);
     assert!(s.n_valence3 + s.n_valence5 > 0);
-    assert!(field.singular_edges.iter().filter(|e| e.kind != SingularKind::Complex).count() >= s.n_valence3 + s.n_valence5);
+    assert!(
+        field.singular_edges.iter().filter(|e| e.kind != SingularKind::Complex).count() >= s.n_valence3 + s.n_valence5
+    );
     assert!(rep.model_surface_residual_max < 1e-12, "{}", rep.model_surface_residual_max);
     assert!(rep.boundary_alignment_max_deg < 1e-6);
     assert!(rep.energy_after < rep.energy_before);
@@ -145,18 +160,30 @@ fn direct_and_iterative_solvers_give_the_same_field() {
     use meshatlas::frames::mbo::LinearSolverKind;
     let sphere = fixtures::icosphere(2);
     let run = |kind| {
-        let opts = FramesOptions { target_size: Some(0.25), linear_solver: Some(kind), pcg_tolerance: 1e-10, ..Default::default() };
+        let opts = FramesOptions {
+            target_size: Some(0.25),
+            linear_solver: Some(kind),
+            pcg_tolerance: 1e-10,
+            ..Default::default()
+        };
         compute_frame_field(&sphere, None, &opts, &Progress::none()).unwrap()
     };
     let (a, b) = (run(LinearSolverKind::Cholesky), run(LinearSolverKind::Pcg));
     assert!(b.report.pcg_iterations > 0 && a.report.pcg_iterations == 0);
-    assert!((a.report.energy_after - b.report.energy_after).abs() < 1e-6 * a.report.energy_after, "{} vs {}", a.report.energy_after, b.report.energy_after);
+    assert!(
+        (a.report.energy_after - b.report.energy_after).abs() < 1e-6 * a.report.energy_after,
+        "{} vs {}",
+        a.report.energy_after,
+        b.report.energy_after
+    );
     assert_eq!(a.singular_edges.len(), b.singular_edges.len());
 }
 
 #[test]
 fn open_surface_fails_with_its_loops() {
-    let err = compute_frame_field(&fixtures::cylinder(1.0, 1.0, 12, 3), None, &FramesOptions::default(), &Progress::none()).unwrap_err();
+    let err =
+        compute_frame_field(&fixtures::cylinder(1.0, 1.0, 12, 3), None, &FramesOptions::default(), &Progress::none())
+            .unwrap_err();
     match &err {
         FramesError::OpenSurface { loops, .. } => assert_eq!(loops.len(), 2),
         other => panic!("{other:?}"),
@@ -168,7 +195,13 @@ fn open_surface_fails_with_its_loops() {
 fn cancellation_stops_the_stage() {
     let p = Progress::none();
     p.cancel_flag().store(true, std::sync::atomic::Ordering::Relaxed);
-    let err = compute_frame_field(&fixtures::icosphere(2), None, &FramesOptions { target_size: Some(0.3), ..Default::default() }, &p).unwrap_err();
+    let err = compute_frame_field(
+        &fixtures::icosphere(2),
+        None,
+        &FramesOptions { target_size: Some(0.3), ..Default::default() },
+        &p,
+    )
+    .unwrap_err();
     assert!(matches!(err, FramesError::Cancelled(_)));
 }
 
@@ -178,7 +211,10 @@ fn options_reject_unknown_fields_and_bad_values() {
     let o: FramesOptions = serde_json::from_str(r#"{"target_size": 0.5}"#).unwrap();
     assert_eq!(o.target_size, Some(0.5));
     let bad = FramesOptions { tau_shrink: 1.5, ..Default::default() };
-    assert!(matches!(compute_frame_field(&fixtures::icosphere(1), None, &bad, &Progress::none()), Err(FramesError::InvalidOption { name: "tau_shrink", .. })));
+    assert!(matches!(
+        compute_frame_field(&fixtures::icosphere(1), None, &bad, &Progress::none()),
+        Err(FramesError::InvalidOption { name: "tau_shrink", .. })
+    ));
 }
 
 #[test]
@@ -193,12 +229,29 @@ fn report_serializes_and_progress_is_monotone() {
     }
     let rec = Arc::new(Rec(Mutex::new(Vec::new())));
     let p = Progress::new(rec.clone(), Arc::new(AtomicBool::new(false)));
-    let field = compute_frame_field(&fixtures::icosphere(2), None, &FramesOptions { target_size: Some(0.3), ..Default::default() }, &p).unwrap();
+    let field = compute_frame_field(
+        &fixtures::icosphere(2),
+        None,
+        &FramesOptions { target_size: Some(0.3), ..Default::default() },
+        &p,
+    )
+    .unwrap();
     let f = rec.0.lock().unwrap().clone();
     assert!(f.len() > 3 && f.windows(2).all(|w| w[1] >= w[0]), "{f:?}");
     assert_eq!(f.last(), Some(&1.0));
     let v = serde_json::to_value(&field.report).unwrap();
-    for key in ["tets", "vertices", "energy_before", "energy_after", "iterations", "energy_history", "singular", "model_surface_residual_max", "seconds", "volume"] {
+    for key in [
+        "tets",
+        "vertices",
+        "energy_before",
+        "energy_after",
+        "iterations",
+        "energy_history",
+        "singular",
+        "model_surface_residual_max",
+        "seconds",
+        "volume",
+    ] {
         assert!(v.get(key).is_some(), "missing {key}");
     }
     assert!(v["energy_history"].as_array().is_some_and(|h| !h.is_empty() && h.iter().all(|r| r["energy"].is_f64())));
@@ -209,7 +262,8 @@ fn report_serializes_and_progress_is_monotone() {
 fn results_do_not_depend_on_the_thread_count() {
     use meshatlas::frames::mbo::LinearSolverKind;
     let sphere = fixtures::icosphere(2);
-    let opts = FramesOptions { target_size: Some(0.2), linear_solver: Some(LinearSolverKind::Pcg), ..Default::default() };
+    let opts =
+        FramesOptions { target_size: Some(0.2), linear_solver: Some(LinearSolverKind::Pcg), ..Default::default() };
     let run = |threads| {
         let pool = rayon::ThreadPoolBuilder::new().num_threads(threads).build().unwrap();
         pool.install(|| compute_frame_field(&sphere, None, &opts, &Progress::none()).unwrap())

@@ -29,14 +29,30 @@ fn check_stuffing(name: &str, surface: &TriMesh, h: f64, vol_tol: f64) {
     let (vol, rep) = tetrahedralize_enclosed_volume(surface, h, 0.24999, 0.41189).unwrap();
     assert!(vol.mesh.validate().is_ok(), "{name}");
     let diag = surface.bounding_box().unwrap().diagonal();
-    assert!(rep.max_boundary_vertex_distance <= 1e-10 * diag, "{name}: boundary vertex off the surface by {}", rep.max_boundary_vertex_distance);
+    assert!(
+        rep.max_boundary_vertex_distance <= 1e-10 * diag,
+        "{name}: boundary vertex off the surface by {}",
+        rep.max_boundary_vertex_distance
+    );
     let back = surface_to_boundary_distance(surface, &vol.mesh);
     assert!(back <= h, "{name}: surface {back} away from the mesh boundary (h = {h})");
     assert!(rep.volume_relative_error.abs() <= vol_tol, "{name}: volume error {}", rep.volume_relative_error);
-    assert!(rep.min_dihedral_deg >= 10.0 && rep.max_dihedral_deg <= 165.0, "{name}: dihedral range {}..{}", rep.min_dihedral_deg, rep.max_dihedral_deg);
+    assert!(
+        rep.min_dihedral_deg >= 10.0 && rep.max_dihedral_deg <= 165.0,
+        "{name}: dihedral range {}..{}",
+        rep.min_dihedral_deg,
+        rep.max_dihedral_deg
+    );
     println!(
         "{name}: h {h}, {} tets, volume error {:.2e}, surface→boundary {:.3} h, dihedral {:.1}..{:.1}°, {} warped, {} Steiner, {} fallbacks",
-        rep.n_tets, rep.volume_relative_error, back / h, rep.min_dihedral_deg, rep.max_dihedral_deg, rep.n_warped, rep.n_steiner, rep.n_cut_fallbacks
+        rep.n_tets,
+        rep.volume_relative_error,
+        back / h,
+        rep.min_dihedral_deg,
+        rep.max_dihedral_deg,
+        rep.n_warped,
+        rep.n_steiner,
+        rep.n_cut_fallbacks
     );
 }
 
@@ -78,7 +94,9 @@ fn thin_walls_need_a_fine_lattice() {
     // two lattice spacings are lost (the report says so), at diag/80 the
     // volume is within 5 % (tets whose four vertices all warped onto the
     // surface are dropped, which thins the thinnest walls a little).
-    let dir = std::path::PathBuf::from(std::env::var("MESHATLAS_CORPUS").unwrap_or_else(|_| "/work/shared/data/corpus".into()));
+    let dir = std::path::PathBuf::from(
+        std::env::var("MESHATLAS_CORPUS").unwrap_or_else(|_| "/work/shared/data/corpus".into()),
+    );
     let s = load_path(&dir.join("gmsh_t13.stl"), None, &LoadOptions::default()).unwrap().surface;
     let diag = s.bounding_box().unwrap().diagonal();
     let (_, coarse) = tetrahedralize_enclosed_volume(&s, diag / 20.0, 0.24999, 0.41189).unwrap();
@@ -94,30 +112,52 @@ fn inputs_without_a_volume_fail_clearly() {
     for p in &mut slab.positions {
         p.z *= 0.01;
     }
-    let err = compute_frame_field(&slab, None, &FramesOptions { target_size: Some(0.5), ..Default::default() }, &Progress::none()).unwrap_err();
+    let err = compute_frame_field(
+        &slab,
+        None,
+        &FramesOptions { target_size: Some(0.5), ..Default::default() },
+        &Progress::none(),
+    )
+    .unwrap_err();
     assert!(matches!(err, FramesError::NoInterior { .. }), "{err:?}");
     // Too small a target size.
-    let err = compute_frame_field(&fixtures::cube(2), None, &FramesOptions { target_size: Some(1e-4), ..Default::default() }, &Progress::none()).unwrap_err();
+    let err = compute_frame_field(
+        &fixtures::cube(2),
+        None,
+        &FramesOptions { target_size: Some(1e-4), ..Default::default() },
+        &Progress::none(),
+    )
+    .unwrap_err();
     assert!(matches!(err, FramesError::TooManyTets { .. }), "{err:?}");
     // An uploaded volume with an inverted tet.
     let bad = TetMesh {
         positions: vec![Vec3::zeros(), Vec3::x(), Vec3::y(), Vec3::z()],
         tets: vec![[VertexId(0), VertexId(2), VertexId(1), VertexId(3)]],
     };
-    let err = compute_frame_field(&fixtures::tetrahedron(), Some(&bad), &FramesOptions::default(), &Progress::none()).unwrap_err();
+    let err = compute_frame_field(&fixtures::tetrahedron(), Some(&bad), &FramesOptions::default(), &Progress::none())
+        .unwrap_err();
     assert!(matches!(err, FramesError::InvalidVolume(_)), "{err:?}");
     assert!(err.to_string().contains("tetrahedron 0"), "{err}");
 }
 
 #[test]
 fn corpus_closed_surfaces_give_valid_fields() {
-    let dir = std::path::PathBuf::from(std::env::var("MESHATLAS_CORPUS").unwrap_or_else(|_| "/work/shared/data/corpus".into()));
-    for (file, cells) in [("fandisk.obj", 22.0), ("aorta_closed.stl", 30.0), ("spot.obj", 20.0), ("plate_holes.stl", 30.0)] {
+    let dir = std::path::PathBuf::from(
+        std::env::var("MESHATLAS_CORPUS").unwrap_or_else(|_| "/work/shared/data/corpus".into()),
+    );
+    for (file, cells) in
+        [("fandisk.obj", 22.0), ("aorta_closed.stl", 30.0), ("spot.obj", 20.0), ("plate_holes.stl", 30.0)]
+    {
         let loaded = load_path(&dir.join(file), None, &LoadOptions::default()).unwrap();
         let s = &loaded.surface;
         let h = s.bounding_box().unwrap().diagonal() / cells;
-        let field = compute_frame_field(s, None, &FramesOptions { target_size: Some(h), ..Default::default() }, &Progress::none())
-            .unwrap_or_else(|e| panic!("{file}: {e}"));
+        let field = compute_frame_field(
+            s,
+            None,
+            &FramesOptions { target_size: Some(h), ..Default::default() },
+            &Progress::none(),
+        )
+        .unwrap_or_else(|e| panic!("{file}: {e}"));
         let r = &field.report;
         assert!(field.volume.validate().is_ok(), "{file}");
         assert!(r.volume.max_boundary_vertex_distance <= 1e-10 * h * cells, "{file}");
@@ -128,8 +168,16 @@ fn corpus_closed_surfaces_give_valid_fields() {
         assert!(r.energy_after <= r.energy_before, "{file}");
         println!(
             "{file}: {} tets, volume error {:.3}, dihedral {:.1}..{:.1}°, energy {:.3e} → {:.3e}, singular {} v3 / {} v5 / {} complex, {} curves",
-            r.tets, r.volume.volume_relative_error, r.volume.min_dihedral_deg, r.volume.max_dihedral_deg, r.energy_before, r.energy_after,
-            r.singular.n_valence3, r.singular.n_valence5, r.singular.n_complex, r.singular.n_curves
+            r.tets,
+            r.volume.volume_relative_error,
+            r.volume.min_dihedral_deg,
+            r.volume.max_dihedral_deg,
+            r.energy_before,
+            r.energy_after,
+            r.singular.n_valence3,
+            r.singular.n_valence5,
+            r.singular.n_complex,
+            r.singular.n_curves
         );
     }
 }

@@ -10,7 +10,13 @@ use meshatlas::progress::Progress;
 
 #[test]
 fn frames_artifacts_are_read_by_meshio() {
-    let field = compute_frame_field(&fixtures::icosphere(2), None, &FramesOptions { target_size: Some(0.25), ..Default::default() }, &Progress::none()).unwrap();
+    let field = compute_frame_field(
+        &fixtures::icosphere(2),
+        None,
+        &FramesOptions { target_size: Some(0.25), ..Default::default() },
+        &Progress::none(),
+    )
+    .unwrap();
     assert!(!field.singular_edges.is_empty());
     let dir = common::scratch("frames_vtu", "ball");
     let (f1, f2) = (dir.join("frames.vtu"), dir.join("frames_singular.vtu"));
@@ -38,7 +44,9 @@ print(json.dumps({
     assert_eq!(out["n_points"].as_u64(), Some(nv));
     assert_eq!(out["cells"][0][0], "tetra");
     assert_eq!(out["cells"][0][1].as_u64(), Some(field.volume.n_tets() as u64));
-    for (name, k) in [("frame_x", 3), ("frame_y", 3), ("frame_z", 3), ("quaternion", 4), ("sh9", 9), ("h0", 2), ("h1", 2), ("h2", 2)] {
+    for (name, k) in
+        [("frame_x", 3), ("frame_y", 3), ("frame_z", 3), ("quaternion", 4), ("sh9", 9), ("h0", 2), ("h1", 2), ("h2", 2)]
+    {
         assert_eq!(out["point_data"][name], serde_json::json!([nv, k]), "{name}");
     }
     assert_eq!(out["cell_data"]["tet_quaternion"], serde_json::json!([[field.volume.n_tets(), 4]]));
@@ -47,7 +55,9 @@ print(json.dumps({
     let q0: Vec<f64> = serde_json::from_value(out["q0"].clone()).unwrap();
     let h00: Vec<f64> = serde_json::from_value(out["h00"].clone()).unwrap();
     // serde_json parses floats to within an ulp, not exactly.
-    let close = |a: &[f64], b: &[f64]| a.len() == b.len() && a.iter().zip(b).all(|(x, y)| (x - y).abs() <= 1e-14 * (1.0 + y.abs()));
+    let close = |a: &[f64], b: &[f64]| {
+        a.len() == b.len() && a.iter().zip(b).all(|(x, y)| (x - y).abs() <= 1e-14 * (1.0 + y.abs()))
+    };
     let a = field.axes_per_vertex[0][0];
     assert!(close(&fx0, &[a.x, a.y, a.z]));
     assert!(close(&q0, &field.quaternion_per_vertex[0]));

@@ -161,9 +161,10 @@ struct Entry {
 fn generated() -> &'static Vec<Entry> {
     static MANIFEST: OnceLock<Vec<Entry>> = OnceLock::new();
     MANIFEST.get_or_init(|| {
-        let key = GENERATOR.bytes().chain(gmsh_data_dir().to_string_lossy().bytes()).fold(0xcbf2_9ce4_8422_2325u64, |h, b| {
-            (h ^ u64::from(b)).wrapping_mul(0x100_0000_01b3)
-        });
+        let key = GENERATOR
+            .bytes()
+            .chain(gmsh_data_dir().to_string_lossy().bytes())
+            .fold(0xcbf2_9ce4_8422_2325u64, |h, b| (h ^ u64::from(b)).wrapping_mul(0x100_0000_01b3));
         let dir = std::env::temp_dir().join(format!("meshatlas-io-readers-{key:016x}"));
         if !dir.join("manifest.json").is_file() {
             let tmp = std::env::temp_dir().join(format!("meshatlas-io-readers-{key:016x}-{}", std::process::id()));
@@ -318,7 +319,11 @@ fn gmsh_atlases_match_their_input_surfaces() {
         let a = load_path(&dir.join(atlas), None, &LoadOptions::default()).unwrap();
         let s = load_path(&dir.join(stl), None, &LoadOptions::default()).unwrap();
         assert_eq!(a.format, Format::Msh);
-        assert_eq!((a.surface.n_faces(), a.surface.n_vertices()), (s.surface.n_faces(), s.surface.n_vertices()), "{atlas}");
+        assert_eq!(
+            (a.surface.n_faces(), a.surface.n_vertices()),
+            (s.surface.n_faces(), s.surface.n_vertices()),
+            "{atlas}"
+        );
         assert_eq!(a.repair.euler_characteristic, s.repair.euler_characteristic);
         assert!(a.repair.skipped_elements.contains_key("Line 2"), "{atlas}: {:?}", a.repair.skipped_elements);
         // Same vertex set (the STL is f32, the atlas f64: compare in f32).
@@ -369,8 +374,10 @@ fn our_writers_round_trip() {
         use meshatlas::io::msh41::model::DataView;
         use meshatlas::mesh::FaceId;
         let disk = fixtures::disk(4);
-        let ring: Vec<VertexId> =
-            (0..disk.n_vertices()).filter(|&v| (disk.positions[v].norm() - 1.0).abs() < 1e-12).map(VertexId::new).collect();
+        let ring: Vec<VertexId> = (0..disk.n_vertices())
+            .filter(|&v| (disk.positions[v].norm() - 1.0).abs() < 1e-12)
+            .map(VertexId::new)
+            .collect();
         let mut b = DiscreteModelBuilder::new(&disk);
         b.add_corner(ring[0]).unwrap();
         let mut chain = ring.clone();
@@ -387,7 +394,11 @@ fn our_writers_round_trip() {
             write_msh41(&mut out, &model, &Msh41Options { binary }).unwrap();
             let l = load(&out);
             let r = &l.repair;
-            assert_eq!((l.surface.n_faces(), l.surface.n_vertices()), (disk.n_faces(), disk.n_vertices()), "binary={binary}");
+            assert_eq!(
+                (l.surface.n_faces(), l.surface.n_vertices()),
+                (disk.n_faces(), disk.n_vertices()),
+                "binary={binary}"
+            );
             assert_eq!((r.n_boundary_loops, r.euler_characteristic, r.n_unreferenced_vertices_dropped), (1, 1, 0));
             assert_eq!(r.skipped_elements.get("Line 2"), Some(&ring.len()), "{:?}", r.skipped_elements);
         }
@@ -529,7 +540,8 @@ fn msh22(m: &TriMesh) -> Vec<u8> {
 /// MSH 4.1 ASCII with entities and a parametric surface block.
 fn msh41(m: &TriMesh) -> Vec<u8> {
     let n = m.n_vertices();
-    let mut s = String::from("$MeshFormat\n4.1 0 8\n$EndMeshFormat\n$Entities\n0 0 1 0\n1 0 0 0 1 1 1 0 0\n$EndEntities\n");
+    let mut s =
+        String::from("$MeshFormat\n4.1 0 8\n$EndMeshFormat\n$Entities\n0 0 1 0\n1 0 0 0 1 1 1 0 0\n$EndEntities\n");
     s.push_str(&format!("$Nodes\n1 {n} 1 {n}\n2 1 1 {n}\n"));
     for i in 0..n {
         s.push_str(&format!("{}\n", i + 1));
@@ -605,7 +617,8 @@ fn check_case(case: &str, format: Format, bytes: &[u8], opts: &LoadOptions, slow
     let took = start.elapsed();
     *slowest = (*slowest).max(took);
     assert!(took < Duration::from_secs(2), "{case}: took {took:?}");
-    let results = results.unwrap_or_else(|_| panic!("{case}: panicked ({} bytes: {:?}…)", bytes.len(), &bytes[..bytes.len().min(64)]));
+    let results = results
+        .unwrap_or_else(|_| panic!("{case}: panicked ({} bytes: {:?}…)", bytes.len(), &bytes[..bytes.len().min(64)]));
     for r in results {
         if let Err(e) = r {
             assert!(KINDS.contains(&e.kind()), "{case}: kind {} ({e})", e.kind());
@@ -730,4 +743,3 @@ fn huge_declared_counts_are_rejected_without_allocating() {
         assert!(start.elapsed() < Duration::from_secs(1), "case {i}");
     }
 }
-

@@ -260,7 +260,13 @@ fn random_vtus_are_read_by_meshio_and_vtk() {
         let (raw, zlib) = (VtuEncoding::Raw, VtuCompression::Zlib);
         let none = VtuCompression::None;
         let variants: &[(VtuEncoding, VtuCompression)] = if i % 6 == 0 {
-            &[(raw, none), (raw, zlib), (VtuEncoding::Base64, none), (VtuEncoding::Base64, zlib), (VtuEncoding::Ascii, none)]
+            &[
+                (raw, none),
+                (raw, zlib),
+                (VtuEncoding::Base64, none),
+                (VtuEncoding::Base64, zlib),
+                (VtuEncoding::Ascii, none),
+            ]
         } else {
             &[(raw, none), (raw, zlib)]
         };

@@ -21,8 +21,8 @@ use super::refine::bisect_inner_edges;
 use super::report::{AtlasReport, PatchReport, SplitCounts, SplitReason};
 use super::verify::{area_distortion, check_map, min_and_median, sigma_ratios};
 use crate::geom::Vec2;
-use crate::mesh::{EdgeId, FaceId, Topology, TriMesh, VertexId};
 use crate::mesh::summary::topology_summary;
+use crate::mesh::{EdgeId, FaceId, Topology, TriMesh, VertexId};
 use crate::progress::Progress;
 use rayon::prelude::*;
 use std::time::Instant;
@@ -104,11 +104,7 @@ enum Outcome {
 /// # Errors
 /// [`AtlasError`] for an empty mesh, bad options, a patch without a valid
 /// map after `max_split_depth` splits, or cancellation.
-pub fn build_atlas(
-    mesh: &TriMesh,
-    opts: &AtlasOptions,
-    progress: &Progress,
-) -> Result<Atlas, AtlasError> {
+pub fn build_atlas(mesh: &TriMesh, opts: &AtlasOptions, progress: &Progress) -> Result<Atlas, AtlasError> {
     opts.validate()?;
     if mesh.n_faces() == 0 {
         return Err(AtlasError::EmptyMesh);
@@ -151,20 +147,9 @@ pub fn build_atlas(
     let atlas_topo = Topology::new(&atlas.mesh);
     attach_curves(&mut atlas, &atlas_topo, &feature_pairs);
     progress.check()?;
-    atlas.curvature = if refined {
-        principal_curvatures(&atlas.mesh, &atlas_topo)
-    } else {
-        input_curvature
-    };
+    atlas.curvature = if refined { principal_curvatures(&atlas.mesh, &atlas_topo) } else { input_curvature };
     let t_curves = t2.elapsed().as_secs_f64();
-    atlas.report = AtlasReport::new(
-        mesh,
-        &summary,
-        &atlas,
-        n_model_faces,
-        splits,
-        [t_features, t_patches, t_curves],
-    );
+    atlas.report = AtlasReport::new(mesh, &summary, &atlas, n_model_faces, splits, [t_features, t_patches, t_curves]);
     progress.set(1.0);
     Ok(atlas)
 }
@@ -179,8 +164,7 @@ fn parameterize_patches(
     opts: &AtlasOptions,
     progress: &Progress,
 ) -> Result<(Vec<DonePatch>, SplitCounts), AtlasError> {
-    let mut pending: Vec<(Vec<FaceId>, usize)> =
-        faces_of_model_face.into_iter().map(|f| (f, 0)).collect();
+    let mut pending: Vec<(Vec<FaceId>, usize)> = faces_of_model_face.into_iter().map(|f| (f, 0)).collect();
     let mut done: Vec<DonePatch> = Vec::new();
     let mut splits = SplitCounts::default();
     let n_total = mesh.n_faces() as f64;
@@ -221,38 +205,22 @@ fn process_patch(
 ) -> Result<Outcome, AtlasError> {
     progress.check()?;
     let is_whole = faces.len() == mesh.n_faces() && faces.iter().enumerate().all(|(i, f)| f.idx() == i);
-    let patch = is_whole
-        .then(|| PatchMesh::whole(mesh, topo))
-        .flatten()
-        .unwrap_or_else(|| PatchMesh::extract(mesh, &faces));
-    let defect = if manifold_input {
-        patch.defect_of_manifold_piece()
-    } else {
-        patch.defect()
-    };
+    let patch =
+        is_whole.then(|| PatchMesh::whole(mesh, topo)).flatten().unwrap_or_else(|| PatchMesh::extract(mesh, &faces));
+    let defect = if manifold_input { patch.defect_of_manifold_piece() } else { patch.defect() };
     if defect.is_some() || patch.n_faces() > opts.max_patch_triangles {
         let pieces = split_patch_into(&patch, parts_for_size(patch.n_faces(), opts.max_patch_triangles))?;
-        return Ok(Outcome::Split {
-            pieces,
-            reason: defect.map_or(SplitReason::Size, SplitReason::Topology),
-            depth,
-        });
+        return Ok(Outcome::Split { pieces, reason: defect.map_or(SplitReason::Size, SplitReason::Topology), depth });
     }
     let start = Instant::now();
     let n_original = patch.mesh.n_vertices();
     let interior_fraction = patch.n_interior_vertices() as f64 / n_original as f64;
     // The refined copy when the patch is too coarse; otherwise the patch
     // itself is parameterized (no copy: a patch is ~50 bytes per triangle).
-    let refined = (interior_fraction < opts.refine_below_interior_fraction
-        && !is_planar(&patch.mesh))
-    .then(|| {
+    let refined = (interior_fraction < opts.refine_below_interior_fraction && !is_planar(&patch.mesh)).then(|| {
         let target = mean_boundary_edge_length(&patch);
-        let r = bisect_inner_edges(
-            &patch.mesh,
-            target,
-            opts.refine_max_passes,
-            refined_size_cap(patch.n_faces(), opts),
-        );
+        let r =
+            bisect_inner_edges(&patch.mesh, target, opts.refine_max_passes, refined_size_cap(patch.n_faces(), opts));
         let mesh = PatchMesh {
             global_vertices: Vec::new(),
             global_faces: Vec::new(),
@@ -274,13 +242,7 @@ fn process_patch(
             preview_distortion.get() > PREVIEW_DISTORTION_MARGIN * opts.max_area_distortion
         }
     };
-    let first = mean_value_parameterization_unless(
-        work,
-        &loops,
-        opts.max_hole_fill_vertices,
-        opts.solver,
-        &hopeless,
-    )?;
+    let first = mean_value_parameterization_unless(work, &loops, opts.max_hole_fill_vertices, opts.solver, &hopeless)?;
     let Some(mut param) = first else {
         let k = parts_for_distortion(preview_distortion.get(), opts.max_area_distortion);
         let pieces = split_patch_into(&patch, k)?;
@@ -290,12 +252,7 @@ fn process_patch(
     if !check.is_valid() && param.solver != MvcSolver::PivotingLu {
         // A solution to 10⁻¹⁰ may still miss a tiny triangle that a pivoting
         // direct solve gets right.
-        param = mean_value_parameterization(
-            work,
-            &loops,
-            opts.max_hole_fill_vertices,
-            MvcSolver::PivotingLu,
-        )?;
+        param = mean_value_parameterization(work, &loops, opts.max_hole_fill_vertices, MvcSolver::PivotingLu)?;
         check = check_map(work, &param.uv, opts.min_relative_uv_area);
     }
     if !check.is_valid() {
@@ -314,11 +271,7 @@ fn process_patch(
             });
         }
         let pieces = split_patch(&patch)?;
-        return Ok(Outcome::Split {
-            pieces,
-            reason: SplitReason::MapFailed,
-            depth: depth + 1,
-        });
+        return Ok(Outcome::Split { pieces, reason: SplitReason::MapFailed, depth: depth + 1 });
     }
     let distortion = area_distortion(work, &param.uv);
     if distortion > opts.max_area_distortion && may_split {
@@ -328,9 +281,8 @@ fn process_patch(
     }
     let sigma = sigma_ratios(work, &param.uv);
     let (sigma_min, sigma_median) = min_and_median(&sigma);
-    let input_vertex = (0..work.mesh.n_vertices())
-        .map(|v| (v < n_original).then(|| patch.global_vertices[v]))
-        .collect();
+    let input_vertex =
+        (0..work.mesh.n_vertices()).map(|v| (v < n_original).then(|| patch.global_vertices[v])).collect();
     let report = PatchReport {
         id: 0,
         n_input_triangles: faces.len(),
@@ -409,11 +361,7 @@ fn mean_boundary_edge_length(patch: &PatchMesh) -> f64 {
             n += 1;
         }
     }
-    if n == 0 {
-        patch.mesh.mean_edge_length()
-    } else {
-        sum / n as f64
-    }
+    if n == 0 { patch.mesh.mean_edge_length() } else { sum / n as f64 }
 }
 
 /// Median over inner edges of |σ2/σ1 difference| between the two triangles:
@@ -471,10 +419,7 @@ fn assemble(mesh: &TriMesh, done: Vec<DonePatch>, features: Features) -> Atlas {
             report,
         });
     }
-    let atlas_mesh = TriMesh {
-        positions,
-        triangles,
-    };
+    let atlas_mesh = TriMesh { positions, triangles };
     debug_assert!(atlas_mesh.validate().is_ok());
     Atlas {
         mesh: atlas_mesh,
@@ -519,15 +464,10 @@ fn attach_curves(atlas: &mut Atlas, topo: &Topology, feature_pairs: &[(VertexId,
         let (a, b) = (chain.vertices[0], chain.vertices[1]);
         for &f in topo.edge_faces(e0) {
             let t = atlas.mesh.triangles[f.idx()];
-            let i = (0..3)
-                .find(|&i| t[i] == a && t[(i + 1) % 3] == b || t[i] == b && t[(i + 1) % 3] == a);
+            let i = (0..3).find(|&i| t[i] == a && t[(i + 1) % 3] == b || t[i] == b && t[(i + 1) % 3] == a);
             let forward = i.is_some_and(|i| t[i] == a);
             let p = atlas.patch_per_face[f.idx()] as usize;
-            if !atlas.patches[p]
-                .curves
-                .iter()
-                .any(|&(cc, _)| cc == c as u32)
-            {
+            if !atlas.patches[p].curves.iter().any(|&(cc, _)| cc == c as u32) {
                 atlas.patches[p].curves.push((c as u32, forward));
             }
         }
@@ -561,20 +501,13 @@ mod tests {
             area[s.idx()] += a.mesh.face_area(FaceId::new(f));
         }
         for f in 0..input.n_faces() {
-            assert!(
-                patch_of_input[f] != u32::MAX,
-                "input triangle {f} in no patch"
-            );
+            assert!(patch_of_input[f] != u32::MAX, "input triangle {f} in no patch");
             assert!((area[f] - input.face_area(FaceId::new(f))).abs() < 1e-12 * (1.0 + area[f]));
         }
         for p in &a.patches {
             for t in &p.triangles {
                 let [x, y, z] = t.map(|v| p.uv[v as usize]);
-                assert!(
-                    orient2d(&x, &y, &z) > 0.0,
-                    "flipped parametric triangle in patch {}",
-                    p.report.id
-                );
+                assert!(orient2d(&x, &y, &z) > 0.0, "flipped parametric triangle in patch {}", p.report.id);
             }
             assert!(!p.curves.is_empty());
         }
@@ -590,11 +523,7 @@ mod tests {
         assert_eq!(a.curves.len(), 1);
         assert_eq!(a.corners.len(), 1);
         let p = &a.patches[0];
-        assert!(
-            p.report.sigma_ratio_median > 0.999,
-            "{}",
-            p.report.sigma_ratio_median
-        );
+        assert!(p.report.sigma_ratio_median > 0.999, "{}", p.report.sigma_ratio_median);
         for (local, v) in p.vertices.iter().enumerate() {
             if m.positions[v.idx()].norm() > 0.999 {
                 assert!((p.uv[local].norm() - 1.0).abs() < 1e-14);
@@ -613,10 +542,7 @@ mod tests {
             .iter()
             .zip(&p.sigma_ratio)
             .filter(|(t, _)| {
-                let c: crate::geom::Vec3 = t
-                    .iter()
-                    .map(|&v| a.mesh.positions[p.vertices[v as usize].idx()])
-                    .sum();
+                let c: crate::geom::Vec3 = t.iter().map(|&v| a.mesh.positions[p.vertices[v as usize].idx()]).sum();
                 (c / 3.0 - crate::geom::Vec3::new(0.5, 0.5, 0.0)).norm() < 0.1
             })
             .map(|(_, s)| *s)
@@ -702,11 +628,8 @@ mod tests {
         assert!(a.patches.iter().all(|p| p.curves.len() == 4));
         // Each curve bounds two patches with opposite orientations.
         for c in 0..12u32 {
-            let uses: Vec<bool> = a
-                .patches
-                .iter()
-                .flat_map(|p| p.curves.iter().filter(|x| x.0 == c).map(|x| x.1))
-                .collect();
+            let uses: Vec<bool> =
+                a.patches.iter().flat_map(|p| p.curves.iter().filter(|x| x.0 == c).map(|x| x.1)).collect();
             assert_eq!(uses.len(), 2);
             assert_ne!(uses[0], uses[1]);
         }
@@ -719,10 +642,7 @@ mod tests {
         // the pseudo-centre filling keeps it usable.
         let m = fixtures::l_plate_with_l_hole(24);
         let run = |max_hole_fill_vertices| {
-            let opts = AtlasOptions {
-                max_hole_fill_vertices,
-                ..Default::default()
-            };
+            let opts = AtlasOptions { max_hole_fill_vertices, ..Default::default() };
             let a = build_atlas(&m, &opts, &Progress::none()).unwrap();
             check_invariants(&m, &a);
             assert_eq!(a.patches.len(), 1);
@@ -745,10 +665,7 @@ mod tests {
     #[test]
     fn small_patch_cap_forces_size_splits() {
         let m = fixtures::disk(12);
-        let opts = AtlasOptions {
-            max_patch_triangles: 200,
-            ..Default::default()
-        };
+        let opts = AtlasOptions { max_patch_triangles: 200, ..Default::default() };
         let a = build_atlas(&m, &opts, &Progress::none()).unwrap();
         check_invariants(&m, &a);
         assert!(a.patches.len() >= m.n_faces().div_ceil(200));
@@ -766,9 +683,6 @@ mod tests {
             fn report(&self, _: &str, _: f64) {}
         }
         let p = Progress::new(std::sync::Arc::new(Nop), cancel);
-        assert_eq!(
-            build_atlas(&m, &AtlasOptions::default(), &p).unwrap_err(),
-            AtlasError::Cancelled
-        );
+        assert_eq!(build_atlas(&m, &AtlasOptions::default(), &p).unwrap_err(), AtlasError::Cancelled);
     }
 }

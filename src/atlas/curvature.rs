@@ -47,18 +47,13 @@ struct FaceForm {
 /// Estimate curvature at every vertex of `mesh`.
 pub fn principal_curvatures(mesh: &TriMesh, topo: &Topology) -> Curvature {
     let normals = vertex_normals(mesh);
-    let forms: Vec<FaceForm> = (0..mesh.n_faces())
-        .into_par_iter()
-        .map(|f| face_form(mesh, &normals, FaceId::new(f)))
-        .collect();
+    let forms: Vec<FaceForm> =
+        (0..mesh.n_faces()).into_par_iter().map(|f| face_form(mesh, &normals, FaceId::new(f))).collect();
     let per_vertex: Vec<(f64, f64, Vec3, Vec3)> = (0..mesh.n_vertices())
         .into_par_iter()
         .map(|v| vertex_curvature(mesh, topo, &normals, &forms, VertexId::new(v)))
         .collect();
-    let mut out = Curvature {
-        normal_per_vertex: normals,
-        ..Default::default()
-    };
+    let mut out = Curvature { normal_per_vertex: normals, ..Default::default() };
     for (k1, k2, d1, d2) in per_vertex {
         out.curvature_max.push(k1);
         out.curvature_min.push(k2);
@@ -115,36 +110,21 @@ fn face_form(mesh: &TriMesh, normals: &[Vec3], f: FaceId) -> FaceForm {
     }
     w[1][1] = w[0][0] + w[2][2];
     w[1][2] = w[0][1];
-    let a = nalgebra::Matrix3::new(
-        w[0][0], w[0][1], 0.0, w[0][1], w[1][1], w[1][2], 0.0, w[1][2], w[2][2],
-    );
+    let a = nalgebra::Matrix3::new(w[0][0], w[0][1], 0.0, w[0][1], w[1][1], w[1][2], 0.0, w[1][2], w[2][2]);
     let form = a
         .cholesky()
         .map(|c| c.solve(&nalgebra::Vector3::new(m[0], m[1], m[2])))
         .map(|x| [x[0], x[1], x[2]])
         .unwrap_or([0.0; 3]);
-    FaceForm {
-        t,
-        b,
-        form,
-        corner_area,
-    }
+    FaceForm { t, b, form, corner_area }
 }
 
 /// Voronoi (mixed) areas of the three corners (Meyer et al. 2003, as in
 /// Rusinkiewicz's code): the circumcentric split for acute triangles, half /
 /// quarter splits at an obtuse corner.
 fn corner_areas(e: &[Vec3; 3], area: f64) -> [f64; 3] {
-    let l2 = [
-        e[0].norm_squared(),
-        e[1].norm_squared(),
-        e[2].norm_squared(),
-    ];
-    let ew = [
-        l2[0] * (l2[1] + l2[2] - l2[0]),
-        l2[1] * (l2[2] + l2[0] - l2[1]),
-        l2[2] * (l2[0] + l2[1] - l2[2]),
-    ];
+    let l2 = [e[0].norm_squared(), e[1].norm_squared(), e[2].norm_squared()];
+    let ew = [l2[0] * (l2[1] + l2[2] - l2[0]), l2[1] * (l2[2] + l2[0] - l2[1]), l2[2] * (l2[0] + l2[1] - l2[2])];
     let mut ca = [0.0; 3];
     if area <= 0.0 {
         return ca;
@@ -187,9 +167,7 @@ fn vertex_curvature(
     let t0 = mesh.triangles[f0.idx()];
     let c0 = t0.iter().position(|&x| x == v).unwrap_or(0);
     let e = mesh.positions[t0[(c0 + 1) % 3].idx()] - mesh.positions[v.idx()];
-    let u = (e - n * n.dot(&e))
-        .try_normalize(0.0)
-        .unwrap_or_else(|| any_perpendicular(&n));
+    let u = (e - n * n.dot(&e)).try_normalize(0.0).unwrap_or_else(|| any_perpendicular(&n));
     let w = n.cross(&u);
     let (mut acc, mut total) = ([0.0f64; 3], 0.0);
     for &f in faces {
@@ -242,31 +220,19 @@ fn diagonalize(u: &Vec3, v: &Vec3, k: [f64; 3], n: &Vec3) -> (f64, f64, Vec3, Ve
     let (mut c, mut s, mut tt) = (1.0, 0.0, 0.0);
     if kuv != 0.0 {
         let h = 0.5 * (kv - ku) / kuv;
-        tt = if h < 0.0 {
-            1.0 / (h - (1.0 + h * h).sqrt())
-        } else {
-            1.0 / (h + (1.0 + h * h).sqrt())
-        };
+        tt = if h < 0.0 { 1.0 / (h - (1.0 + h * h).sqrt()) } else { 1.0 / (h + (1.0 + h * h).sqrt()) };
         c = 1.0 / (1.0 + tt * tt).sqrt();
         s = tt * c;
     }
     let (k1, k2) = (ku - tt * kuv, kv + tt * kuv);
     let d1 = u * c - v * s;
     let d2 = u * s + v * c;
-    if k1 >= k2 {
-        (k1, k2, d1, n.cross(&d1))
-    } else {
-        (k2, k1, d2, n.cross(&d2))
-    }
+    if k1 >= k2 { (k1, k2, d1, n.cross(&d1)) } else { (k2, k1, d2, n.cross(&d2)) }
 }
 
 /// Some unit vector perpendicular to `n`.
 fn any_perpendicular(n: &Vec3) -> Vec3 {
-    let a = if n.x.abs() < 0.9 {
-        Vec3::x()
-    } else {
-        Vec3::y()
-    };
+    let a = if n.x.abs() < 0.9 { Vec3::x() } else { Vec3::y() };
     n.cross(&a).try_normalize(0.0).unwrap_or_else(Vec3::x)
 }
 
@@ -280,16 +246,8 @@ mod tests {
         let m = fixtures::icosphere(4);
         let c = principal_curvatures(&m, &Topology::new(&m));
         for v in 0..m.n_vertices() {
-            assert!(
-                (c.curvature_max[v] - 1.0).abs() < 0.02,
-                "k1 {}",
-                c.curvature_max[v]
-            );
-            assert!(
-                (c.curvature_min[v] - 1.0).abs() < 0.02,
-                "k2 {}",
-                c.curvature_min[v]
-            );
+            assert!((c.curvature_max[v] - 1.0).abs() < 0.02, "k1 {}", c.curvature_max[v]);
+            assert!((c.curvature_min[v] - 1.0).abs() < 0.02, "k2 {}", c.curvature_min[v]);
             assert!((c.normal_per_vertex[v] - m.positions[v]).norm() < 1e-3);
         }
     }
@@ -301,17 +259,9 @@ mod tests {
         let c = principal_curvatures(&m, &Topology::new(&m));
         // Interior rings only (the open ends have one-sided stencils).
         for v in 64 * 4..64 * 12 {
-            assert!(
-                (c.curvature_max[v] - 1.0 / r).abs() < 0.01,
-                "k1 {}",
-                c.curvature_max[v]
-            );
+            assert!((c.curvature_max[v] - 1.0 / r).abs() < 0.01, "k1 {}", c.curvature_max[v]);
             assert!(c.curvature_min[v].abs() < 0.01, "k2 {}", c.curvature_min[v]);
-            assert!(
-                c.direction_min[v].z.abs() > 0.99,
-                "axis direction {:?}",
-                c.direction_min[v]
-            );
+            assert!(c.direction_min[v].z.abs() > 0.99, "axis direction {:?}", c.direction_min[v]);
             assert!(c.direction_max[v].z.abs() < 0.05);
         }
     }
@@ -320,11 +270,6 @@ mod tests {
     fn plane_is_flat() {
         let m = fixtures::square(6);
         let c = principal_curvatures(&m, &Topology::new(&m));
-        assert!(
-            c.curvature_max
-                .iter()
-                .chain(&c.curvature_min)
-                .all(|k| k.abs() < 1e-12)
-        );
+        assert!(c.curvature_max.iter().chain(&c.curvature_min).all(|k| k.abs() < 1e-12));
     }
 }

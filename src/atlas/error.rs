@@ -18,14 +18,7 @@ pub enum AtlasError {
         "patch of {n_faces} triangles around ({x:.6e}, {y:.6e}, {z:.6e}) has no valid parameterization \
          after {attempts} splits: {reason}"
     )]
-    NoValidMap {
-        n_faces: usize,
-        x: f64,
-        y: f64,
-        z: f64,
-        attempts: usize,
-        reason: String,
-    },
+    NoValidMap { n_faces: usize, x: f64, y: f64, z: f64, attempts: usize, reason: String },
     /// A sparse solve failed.
     #[error("linear solve failed: {0}")]
     Linalg(#[from] LinalgError),

@@ -165,10 +165,7 @@ pub(crate) fn edge_chains(
                     break;
                 }
                 let around = &incident[offsets[v.idx()] as usize..offsets[v.idx() + 1] as usize];
-                match around
-                    .iter()
-                    .find(|&&x| curve_per_edge[x.idx()] == u32::MAX)
-                {
+                match around.iter().find(|&&x| curve_per_edge[x.idx()] == u32::MAX) {
                     Some(&next) => e = next,
                     None => break,
                 }
@@ -176,10 +173,7 @@ pub(crate) fn edge_chains(
             curves.push(FeatureCurve { vertices, edges });
         }
     }
-    let corners = (0..n_v)
-        .filter(|&v| is_corner[v])
-        .map(VertexId::new)
-        .collect();
+    let corners = (0..n_v).filter(|&v| is_corner[v]).map(VertexId::new).collect();
     (corners, curves, curve_per_edge)
 }
 
@@ -196,11 +190,7 @@ mod tests {
         assert_eq!(f.n_sharp_edges, 12 * 3);
         assert_eq!(f.corners.len(), 8);
         assert_eq!(f.curves.len(), 12);
-        assert!(
-            f.curves
-                .iter()
-                .all(|c| c.edges.len() == 3 && !c.is_closed())
-        );
+        assert!(f.curves.iter().all(|c| c.edges.len() == 3 && !c.is_closed()));
         assert_eq!(model_faces(&t, &f).n_components, 6);
         // Turning features off leaves one model face.
         let none = detect_features(&m, &t, 180.0);

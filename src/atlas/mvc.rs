@@ -35,9 +35,7 @@
 use super::error::AtlasError;
 use super::patch::PatchMesh;
 use crate::geom::{Vec2, Vec3};
-use crate::linalg::{
-    LinalgError, LuSolver, SparseMatrix, SupernodalCholesky, SupernodalLu, Triplets, bicgstab_block,
-};
+use crate::linalg::{LinalgError, LuSolver, SparseMatrix, SupernodalCholesky, SupernodalLu, Triplets, bicgstab_block};
 use crate::mesh::VertexId;
 use crate::mesh::boundary::BoundaryLoop;
 use serde::{Deserialize, Serialize};
@@ -92,9 +90,8 @@ pub fn mean_value_parameterization(
     solver: MvcSolver,
 ) -> Result<PatchParameterization, AtlasError> {
     let never = |_: &[Vec2]| false;
-    mean_value_parameterization_unless(patch, loops, max_fill_vertices, solver, &never)?.ok_or_else(
-        || AtlasError::Linalg(LinalgError::Internal("mean value solve abandoned".into())),
-    )
+    mean_value_parameterization_unless(patch, loops, max_fill_vertices, solver, &never)?
+        .ok_or_else(|| AtlasError::Linalg(LinalgError::Internal("mean value solve abandoned".into())))
 }
 
 /// As [`mean_value_parameterization`], but with BiCGSTAB the first
@@ -117,11 +114,7 @@ pub fn mean_value_parameterization_unless(
     let outer = &loops[0];
     let mut uv = vec![Vec2::zeros(); n_v];
     let mut unknown_of = vec![usize::MAX; n_v];
-    for (v, p) in outer
-        .vertices
-        .iter()
-        .zip(circle_by_arc_length(&patch.mesh.positions, &outer.vertices))
-    {
+    for (v, p) in outer.vertices.iter().zip(circle_by_arc_length(&patch.mesh.positions, &outer.vertices)) {
         uv[v.idx()] = p;
     }
     let on_outer: Vec<bool> = {
@@ -136,10 +129,7 @@ pub fn mean_value_parameterization_unless(
             n_unknowns += 1;
         }
     }
-    let filled: Vec<&BoundaryLoop> = loops[1..]
-        .iter()
-        .filter(|h| h.vertices.len() <= max_fill_vertices)
-        .collect();
+    let filled: Vec<&BoundaryLoop> = loops[1..].iter().filter(|h| h.vertices.len() <= max_fill_vertices).collect();
     let n_centres = filled.len();
     let n = n_unknowns + n_centres;
 
@@ -148,8 +138,7 @@ pub fn mean_value_parameterization_unless(
     // triangle corner): ~3.5 triplets per triangle for A, ~2 for S.
     let pos = &patch.mesh.positions;
     let topo = &patch.topo;
-    let (mut lam_lo_hi, mut lam_hi_lo) =
-        (vec![0.0f64; topo.n_edges()], vec![0.0f64; topo.n_edges()]);
+    let (mut lam_lo_hi, mut lam_hi_lo) = (vec![0.0f64; topo.n_edges()], vec![0.0f64; topo.n_edges()]);
     for (f, t) in patch.mesh.triangles.iter().enumerate() {
         let fe = topo.face_edges[f];
         for c in 0..3 {
@@ -166,8 +155,7 @@ pub fn mean_value_parameterization_unless(
             }
         }
     }
-    let capacity =
-        2 * topo.n_edges() + n + 6 * filled.iter().map(|h| h.vertices.len()).sum::<usize>();
+    let capacity = 2 * topo.n_edges() + n + 6 * filled.iter().map(|h| h.vertices.len()).sum::<usize>();
     let mut system = MvcSystem::new(n, capacity, solver == MvcSolver::Bicgstab);
     for (e, [a, b]) in topo.edges.iter().enumerate() {
         let (ra, rb) = (unknown_of[a.idx()], unknown_of[b.idx()]);
@@ -179,13 +167,7 @@ pub fn mean_value_parameterization_unless(
         }
     }
     for (h, hole) in filled.iter().enumerate() {
-        add_virtual_fill(
-            &mut system,
-            pos,
-            &hole.vertices,
-            &unknown_of,
-            n_unknowns + h,
-        );
+        add_virtual_fill(&mut system, pos, &hole.vertices, &unknown_of, n_unknowns + h);
     }
     // The per-edge weights are not needed any more (memory peaks in the solve).
     drop((lam_lo_hi, lam_hi_lo));
@@ -276,12 +258,7 @@ const MAX_REFINEMENTS: usize = 3;
 /// single-precision LU of `A` itself, `M⁻¹ A` is the identity up to ~10⁻⁶
 /// and one step reaches 10⁻¹⁰ (every corpus patch): two applications of
 /// `M⁻¹` where a BiCGSTAB iteration costs three.
-fn refine(
-    a: &SparseMatrix,
-    apply: &dyn Fn(&mut [Vec<f64>]),
-    b: &[Vec<f64>],
-    x: &mut [Vec<f64>],
-) -> Option<usize> {
+fn refine(a: &SparseMatrix, apply: &dyn Fn(&mut [Vec<f64>]), b: &[Vec<f64>], x: &mut [Vec<f64>]) -> Option<usize> {
     let norm = |v: &[f64]| v.iter().map(|t| t * t).sum::<f64>().sqrt();
     let b_norm: Vec<f64> = b.iter().map(|c| norm(c)).collect();
     let mut r = vec![vec![0.0; b[0].len()]; b.len()];
@@ -327,11 +304,7 @@ fn preconditioned_solve(
     give_up: &dyn Fn(&[Vec<f64>]) -> bool,
 ) -> Krylov {
     let apply = |cols: &mut [Vec<f64>]| {
-        let mut x: Vec<[f64; 2]> = cols[0]
-            .iter()
-            .zip(&cols[1])
-            .map(|(&u, &v)| [u, v])
-            .collect();
+        let mut x: Vec<[f64; 2]> = cols[0].iter().zip(&cols[1]).map(|(&u, &v)| [u, v]).collect();
         // Lengths always match the factored matrix here.
         let _ = precond(&mut x);
         for (i, [u, v]) in x.into_iter().enumerate() {
@@ -348,14 +321,7 @@ fn preconditioned_solve(
         rhs.clone_from_slice(&x);
         return Krylov::Converged([steps; 2]);
     }
-    let reps = bicgstab_block(
-        a,
-        &apply,
-        rhs,
-        &mut x,
-        KRYLOV_TOLERANCE,
-        KRYLOV_MAX_ITERATIONS,
-    );
+    let reps = bicgstab_block(a, &apply, rhs, &mut x, KRYLOV_TOLERANCE, KRYLOV_MAX_ITERATIONS);
     if reps.iter().all(|r| r.converged) {
         rhs.clone_from_slice(&x);
         Krylov::Converged([reps[0].iterations, reps[1].iterations])
@@ -371,8 +337,7 @@ pub fn circle_by_arc_length(positions: &[Vec3], loop_vertices: &[VertexId]) -> V
     let mut acc = 0.0;
     for k in 0..m {
         s.push(acc);
-        acc += (positions[loop_vertices[(k + 1) % m].idx()] - positions[loop_vertices[k].idx()])
-            .norm();
+        acc += (positions[loop_vertices[(k + 1) % m].idx()] - positions[loop_vertices[k].idx()]).norm();
     }
     let total = if acc > 0.0 { acc } else { 1.0 };
     s.iter()
@@ -393,17 +358,9 @@ pub fn tan_half_angle(a: &Vec3, b: &Vec3) -> f64 {
 }
 
 /// Add the virtual triangles `(h_j, h_{j+1}, c)` of a filled hole to the system.
-fn add_virtual_fill(
-    system: &mut MvcSystem,
-    pos: &[Vec3],
-    hole: &[VertexId],
-    unknown_of: &[usize],
-    centre: usize,
-) {
+fn add_virtual_fill(system: &mut MvcSystem, pos: &[Vec3], hole: &[VertexId], unknown_of: &[usize], centre: usize) {
     let m = hole.len();
-    let lengths: Vec<f64> = (0..m)
-        .map(|j| (pos[hole[(j + 1) % m].idx()] - pos[hole[j].idx()]).norm())
-        .collect();
+    let lengths: Vec<f64> = (0..m).map(|j| (pos[hole[(j + 1) % m].idx()] - pos[hole[j].idx()]).norm()).collect();
     let perimeter: f64 = lengths.iter().sum();
     if perimeter <= 0.0 {
         return;
@@ -450,11 +407,7 @@ impl MvcSystem {
             triplets: Triplets::with_capacity(n, n, capacity),
             diagonal: vec![0.0; n],
             with_symmetric,
-            symmetric: Triplets::with_capacity(
-                n_sym,
-                n_sym,
-                if with_symmetric { capacity / 2 + n } else { 0 },
-            ),
+            symmetric: Triplets::with_capacity(n_sym, n_sym, if with_symmetric { capacity / 2 + n } else { 0 }),
             symmetric_diagonal: vec![0.0; n_sym],
             rhs: [vec![0.0; n], vec![0.0; n]],
         }
@@ -485,14 +438,7 @@ impl MvcSystem {
 
     /// `A`, `S` (when assembled) and the right-hand sides `[u, v]`.
     fn finish(self) -> Result<AssembledSystem, AtlasError> {
-        let Self {
-            mut triplets,
-            diagonal,
-            with_symmetric,
-            mut symmetric,
-            symmetric_diagonal,
-            rhs: [u, v],
-        } = self;
+        let Self { mut triplets, diagonal, with_symmetric, mut symmetric, symmetric_diagonal, rhs: [u, v] } = self;
         for (i, d) in diagonal.iter().enumerate() {
             triplets.push(i, i, *d);
         }
@@ -525,13 +471,7 @@ mod tests {
         let p = whole(&m);
         let loops = p.loops_longest_first();
         let par = mean_value_parameterization(&p, &loops, 100, MvcSolver::Lu).unwrap();
-        let err = p
-            .mesh
-            .positions
-            .iter()
-            .zip(&par.uv)
-            .map(|(x, u)| (x.xy() - u).norm())
-            .fold(0.0, f64::max);
+        let err = p.mesh.positions.iter().zip(&par.uv).map(|(x, u)| (x.xy() - u).norm()).fold(0.0, f64::max);
         assert!(err < 1e-12, "max error {err}");
         // Boundary exactly on the circle.
         for v in &loops[0].vertices {
@@ -557,42 +497,26 @@ mod tests {
             let it = mean_value_parameterization(&p, &loops, 100, solver).unwrap();
             assert_eq!(it.solver, solver);
             assert!(it.iterations[0] < 50, "{solver:?}: {:?}", it.iterations);
-            let err = exact
-                .uv
-                .iter()
-                .zip(&it.uv)
-                .map(|(a, b)| (a - b).norm())
-                .fold(0.0, f64::max);
+            let err = exact.uv.iter().zip(&it.uv).map(|(a, b)| (a - b).norm()).fold(0.0, f64::max);
             assert!(err < 1e-10, "{solver:?}: max difference {err}");
             // The first approximation seen by `give_up` is close to the
             // map; giving up returns no map.
             let seen = std::cell::Cell::new(f64::NAN);
             let look = |uv: &[Vec2]| {
-                seen.set(
-                    uv.iter()
-                        .zip(&exact.uv)
-                        .map(|(a, b)| (a - b).norm())
-                        .fold(0.0, f64::max),
-                );
+                seen.set(uv.iter().zip(&exact.uv).map(|(a, b)| (a - b).norm()).fold(0.0, f64::max));
                 true
             };
-            let stopped =
-                mean_value_parameterization_unless(&p, &loops, 100, solver, &look).unwrap();
+            let stopped = mean_value_parameterization_unless(&p, &loops, 100, solver, &look).unwrap();
             assert!(stopped.is_none());
             let close = if solver == MvcSolver::Lu { 1e-4 } else { 0.1 };
-            assert!(
-                seen.get() < close,
-                "{solver:?}: first approximation off by {}",
-                seen.get()
-            );
+            assert!(seen.get() < close, "{solver:?}: first approximation off by {}", seen.get());
         }
         // The single-precision LU needs one or two refinement steps.
         let lu = mean_value_parameterization(&p, &loops, 100, MvcSolver::Lu).unwrap();
         assert!(lu.iterations.iter().all(|&i| i <= 2), "{:?}", lu.iterations);
         // The pivoting LU has no preview.
         let look = |_: &[Vec2]| true;
-        let direct =
-            mean_value_parameterization_unless(&p, &loops, 100, MvcSolver::PivotingLu, &look);
+        let direct = mean_value_parameterization_unless(&p, &loops, 100, MvcSolver::PivotingLu, &look);
         assert!(direct.unwrap().is_some());
     }
 
@@ -609,12 +533,9 @@ mod tests {
         let m = fixtures::annulus(0.3, 1.0, 32, 6);
         let p = whole(&m);
         let loops = p.loops_longest_first();
-        for (max_fill, solver) in [
-            (1000, MvcSolver::Lu),
-            (0, MvcSolver::Lu),
-            (1000, MvcSolver::Bicgstab),
-            (0, MvcSolver::Bicgstab),
-        ] {
+        for (max_fill, solver) in
+            [(1000, MvcSolver::Lu), (0, MvcSolver::Lu), (1000, MvcSolver::Bicgstab), (0, MvcSolver::Bicgstab)]
+        {
             let par = mean_value_parameterization(&p, &loops, max_fill, solver).unwrap();
             assert_eq!(par.solver, solver);
             assert_eq!(par.n_holes_filled + par.n_holes_neumann, 1);

@@ -74,12 +74,7 @@ impl AtlasOptions {
     /// # Errors
     /// [`AtlasError::InvalidOption`] naming the first bad option.
     pub fn validate(&self) -> Result<(), AtlasError> {
-        let bad = |name, reason: &str| {
-            Err(AtlasError::InvalidOption {
-                name,
-                reason: reason.into(),
-            })
-        };
+        let bad = |name, reason: &str| Err(AtlasError::InvalidOption { name, reason: reason.into() });
         if !(0.0..=180.0).contains(&self.feature_angle_deg) {
             return bad("feature_angle_deg", "must be within [0, 180]");
         }
@@ -113,14 +108,7 @@ mod tests {
         assert_eq!(o.max_patch_triangles, 100_000);
         let e = serde_json::from_str::<AtlasOptions>(r#"{"feature_angle": 30}"#).unwrap_err();
         assert!(e.to_string().contains("unknown field `feature_angle`"));
-        assert!(
-            AtlasOptions {
-                feature_angle_deg: 200.0,
-                ..Default::default()
-            }
-            .validate()
-            .is_err()
-        );
+        assert!(AtlasOptions { feature_angle_deg: 200.0, ..Default::default() }.validate().is_err());
         assert!(AtlasOptions::default().validate().is_ok());
     }
 }

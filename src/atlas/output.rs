@@ -37,33 +37,17 @@ pub fn write_atlas_msh(atlas: &Atlas, w: impl Write) -> Result<(), WriteError> {
     }
     let c = &atlas.curvature;
     for p in &atlas.patches {
-        let boundary = p
-            .curves
-            .iter()
-            .map(|&(k, forward)| {
-                if forward {
-                    k as i32 + 1
-                } else {
-                    -(k as i32 + 1)
-                }
-            })
-            .collect();
+        let boundary =
+            p.curves.iter().map(|&(k, forward)| if forward { k as i32 + 1 } else { -(k as i32 + 1) }).collect();
         let curvature = p
             .vertices
             .iter()
             .map(|v| {
                 let i = v.idx();
-                [
-                    c.direction_max[i] * c.curvature_max[i].abs(),
-                    c.direction_min[i] * c.curvature_min[i].abs(),
-                ]
+                [c.direction_max[i] * c.curvature_max[i].abs(), c.direction_min[i] * c.curvature_min[i].abs()]
             })
             .collect();
-        let uv = PatchUv {
-            vertices: p.vertices.clone(),
-            uv: p.uv.clone(),
-            curvature,
-        };
+        let uv = PatchUv { vertices: p.vertices.clone(), uv: p.uv.clone(), curvature };
         builder.add_patch(p.faces.clone(), boundary, Some(uv))?;
     }
     write_msh41(w, &builder.build()?, &Msh41Options::default())
@@ -95,20 +79,13 @@ pub fn write_atlas_vtu(atlas: &Atlas, w: impl Write) -> Result<(), WriteError> {
             sigma[f.idx()] = *s;
         }
     }
-    let patch: Vec<i32> = atlas
-        .patch_per_face
-        .iter()
-        .map(|&p| p as i32)
-        .chain(std::iter::repeat_n(-1, lines.len()))
-        .collect();
+    let patch: Vec<i32> =
+        atlas.patch_per_face.iter().map(|&p| p as i32).chain(std::iter::repeat_n(-1, lines.len())).collect();
     let feature_curve: Vec<i32> = std::iter::repeat_n(-1, n_tri).chain(line_curve).collect();
     let c = &atlas.curvature;
     let mesh = VtuMesh {
         points: &atlas.mesh.positions,
-        cells: vec![
-            CellBlock::Triangles(&atlas.mesh.triangles),
-            CellBlock::Lines(&lines),
-        ],
+        cells: vec![CellBlock::Triangles(&atlas.mesh.triangles), CellBlock::Lines(&lines)],
         point_data: vec![
             DataArray::f64("curvature_max", 1, c.curvature_max.as_slice()),
             DataArray::f64("curvature_min", 1, c.curvature_min.as_slice()),

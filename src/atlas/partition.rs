@@ -32,10 +32,7 @@ pub fn bisect_dual_graph(patch: &PatchMesh) -> Result<Vec<i32>, AtlasError> {
 /// [`AtlasError::Partition`] when METIS fails or the patch has < 2 triangles.
 pub fn partition_dual_graph(patch: &PatchMesh, k: usize) -> Result<Vec<i32>, AtlasError> {
     let n = patch.n_faces();
-    let fail = |message: String| AtlasError::Partition {
-        n_faces: n,
-        message,
-    };
+    let fail = |message: String| AtlasError::Partition { n_faces: n, message };
     if n < 2 {
         return Err(fail("a single triangle cannot be split".into()));
     }
@@ -51,17 +48,10 @@ pub fn partition_dual_graph(patch: &PatchMesh, k: usize) -> Result<Vec<i32>, Atl
     }
     // METIS (GKlib) keeps its random generator in global state: one lock
     // for every METIS call of the crate.
-    let _guard = crate::linalg::ordering::METIS_LOCK
-        .lock()
-        .unwrap_or_else(|poisoned| poisoned.into_inner());
-    let graph =
-        metis::Graph::new(1, k as i32, &xadj, &adjncy).map_err(|e| fail(format!("{e:?}")))?;
-    if k == 2 {
-        graph.part_recursive(&mut part)
-    } else {
-        graph.part_kway(&mut part)
-    }
-    .map_err(|e| fail(format!("{e:?}")))?;
+    let _guard = crate::linalg::ordering::METIS_LOCK.lock().unwrap_or_else(|poisoned| poisoned.into_inner());
+    let graph = metis::Graph::new(1, k as i32, &xadj, &adjncy).map_err(|e| fail(format!("{e:?}")))?;
+    if k == 2 { graph.part_recursive(&mut part) } else { graph.part_kway(&mut part) }
+        .map_err(|e| fail(format!("{e:?}")))?;
     Ok(part)
 }
 
@@ -206,10 +196,7 @@ mod tests {
         let p = PatchMesh::extract(&m, &faces);
         let part = bisect_dual_graph(&p).unwrap();
         let n1 = part.iter().filter(|&&x| x == 1).count();
-        assert!(
-            (n1 as f64 - 2560.0).abs() <= 0.02 * 5120.0,
-            "unbalanced: {n1}"
-        );
+        assert!((n1 as f64 - 2560.0).abs() <= 0.02 * 5120.0, "unbalanced: {n1}");
         // A great circle crosses about π·sqrt(n) dual edges; stay within 2× of that.
         let cut = cut_size(&p, &part);
         let great_circle = std::f64::consts::PI * (5120f64 / 2.0).sqrt() * 1.2;
@@ -223,9 +210,6 @@ mod tests {
     fn single_triangle_cannot_be_split() {
         let m = fixtures::tetrahedron();
         let p = PatchMesh::extract(&m, &[FaceId(0)]);
-        assert!(matches!(
-            bisect_dual_graph(&p),
-            Err(AtlasError::Partition { n_faces: 1, .. })
-        ));
+        assert!(matches!(bisect_dual_graph(&p), Err(AtlasError::Partition { n_faces: 1, .. })));
     }
 }

@@ -92,22 +92,11 @@ impl PatchMesh {
                 }));
             }
         }
-        let positions = global_vertices
-            .iter()
-            .map(|v| mesh.positions[v.idx()])
-            .collect();
-        let local = TriMesh {
-            positions,
-            triangles,
-        };
+        let positions = global_vertices.iter().map(|v| mesh.positions[v.idx()]).collect();
+        let local = TriMesh { positions, triangles };
         debug_assert!(local.validate().is_ok());
         let topo = Topology::new(&local);
-        Self {
-            global_vertices,
-            global_faces: faces.to_vec(),
-            mesh: local,
-            topo,
-        }
+        Self { global_vertices, global_faces: faces.to_vec(), mesh: local, topo }
     }
 
     /// Number of triangles.
@@ -199,8 +188,7 @@ impl PatchMesh {
     /// Boundary loops, longest (in 3D length) first.
     pub fn loops_longest_first(&self) -> Vec<BoundaryLoop> {
         let mut loops = boundary_loops(&self.mesh, &self.topo);
-        let mut keyed: Vec<(f64, BoundaryLoop)> =
-            loops.drain(..).map(|l| (l.length(&self.mesh), l)).collect();
+        let mut keyed: Vec<(f64, BoundaryLoop)> = loops.drain(..).map(|l| (l.length(&self.mesh), l)).collect();
         keyed.sort_by(|a, b| b.0.total_cmp(&a.0));
         keyed.into_iter().map(|(_, l)| l).collect()
     }
@@ -217,12 +205,7 @@ mod tests {
 
     #[test]
     fn disk_and_annulus_qualify() {
-        for m in [
-            fixtures::disk(4),
-            fixtures::annulus(0.3, 1.0, 24, 3),
-            fixtures::square(3),
-            fixtures::l_shape(2),
-        ] {
+        for m in [fixtures::disk(4), fixtures::annulus(0.3, 1.0, 24, 3), fixtures::square(3), fixtures::l_shape(2)] {
             let p = PatchMesh::extract(&m, &all_faces(&m));
             assert_eq!(p.defect(), None);
         }
@@ -231,22 +214,13 @@ mod tests {
     #[test]
     fn closed_and_higher_genus_do_not() {
         let s = fixtures::icosphere(1);
-        assert_eq!(
-            PatchMesh::extract(&s, &all_faces(&s)).defect(),
-            Some(PatchDefect::Closed)
-        );
+        assert_eq!(PatchMesh::extract(&s, &all_faces(&s)).defect(), Some(PatchDefect::Closed));
         // A torus with one triangle removed: one boundary loop, genus 1.
         let t = fixtures::torus(1.0, 0.4, 16, 8);
         let faces: Vec<FaceId> = (1..t.n_faces()).map(FaceId::new).collect();
-        assert_eq!(
-            PatchMesh::extract(&t, &faces).defect(),
-            Some(PatchDefect::Genus)
-        );
+        assert_eq!(PatchMesh::extract(&t, &faces).defect(), Some(PatchDefect::Genus));
         let band = fixtures::mobius_band(16);
-        assert_eq!(
-            PatchMesh::extract(&band, &all_faces(&band)).defect(),
-            Some(PatchDefect::NotOrientable)
-        );
+        assert_eq!(PatchMesh::extract(&band, &all_faces(&band)).defect(), Some(PatchDefect::NotOrientable));
     }
 
     #[test]
@@ -263,10 +237,7 @@ mod tests {
         // 3×3 grid without cells (0,0) and (1,1): a ring of 7 cells whose hole
         // touches the outer boundary at one vertex.
         let m = fixtures::square(3);
-        let faces: Vec<FaceId> = (0..m.n_faces())
-            .filter(|f| ![0, 1, 8, 9].contains(f))
-            .map(FaceId::new)
-            .collect();
+        let faces: Vec<FaceId> = (0..m.n_faces()).filter(|f| ![0, 1, 8, 9].contains(f)).map(FaceId::new).collect();
         let p = PatchMesh::extract(&m, &faces);
         assert_eq!(p.defect(), Some(PatchDefect::NonManifold));
         assert_eq!(p.defect_of_manifold_piece(), Some(PatchDefect::NonManifold));

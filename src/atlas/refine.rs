@@ -28,27 +28,15 @@ pub struct Refinement {
 
 /// Bisect inner edges longer than `target_length`, longest first, for up to
 /// `max_passes` passes, stopping before the mesh exceeds `max_faces` triangles.
-pub fn bisect_inner_edges(
-    mesh: &TriMesh,
-    target_length: f64,
-    max_passes: usize,
-    max_faces: usize,
-) -> Refinement {
-    let mut out = Refinement {
-        mesh: mesh.clone(),
-        source_face: (0..mesh.n_faces() as u32).collect(),
-        n_bisections: 0,
-    };
+pub fn bisect_inner_edges(mesh: &TriMesh, target_length: f64, max_passes: usize, max_faces: usize) -> Refinement {
+    let mut out = Refinement { mesh: mesh.clone(), source_face: (0..mesh.n_faces() as u32).collect(), n_bisections: 0 };
     for _ in 0..max_passes {
         let topo = Topology::new(&out.mesh);
         let mut tagged: Vec<(f64, [VertexId; 2])> = (0..topo.n_edges())
             .filter(|&e| topo.edge_valence(EdgeId::new(e)) == 2)
             .map(|e| {
                 let [a, b] = topo.edges[e];
-                (
-                    (out.mesh.positions[b.idx()] - out.mesh.positions[a.idx()]).norm(),
-                    [a, b],
-                )
+                ((out.mesh.positions[b.idx()] - out.mesh.positions[a.idx()]).norm(), [a, b])
             })
             .filter(|(l, _)| *l > target_length)
             .collect();
@@ -75,11 +63,7 @@ const NONE: u32 = u32::MAX;
 /// Add triangle `f` to the incidences of edge `k`.
 fn attach(map: &mut HashMap<(u32, u32), EdgeFaces>, k: (u32, u32), f: u32) {
     let slot = map.entry(k).or_insert([NONE, NONE]);
-    if slot[0] == NONE {
-        slot[0] = f
-    } else {
-        slot[1] = f
-    }
+    if slot[0] == NONE { slot[0] = f } else { slot[1] = f }
 }
 
 /// Map from sorted vertex pair to the (up to two) triangles using it.
@@ -99,12 +83,7 @@ fn key(a: VertexId, b: VertexId) -> (u32, u32) {
 }
 
 /// Split edge `ab` at its midpoint, replacing its two triangles by four.
-fn split_edge(
-    out: &mut Refinement,
-    faces_of_edge: &mut HashMap<(u32, u32), EdgeFaces>,
-    a: VertexId,
-    b: VertexId,
-) {
+fn split_edge(out: &mut Refinement, faces_of_edge: &mut HashMap<(u32, u32), EdgeFaces>, a: VertexId, b: VertexId) {
     let Some(&faces) = faces_of_edge.get(&key(a, b)) else {
         return;
     };
@@ -119,9 +98,7 @@ fn split_edge(
     for f in faces {
         let t = out.mesh.triangles[f as usize];
         // Rotate so the split edge is local edge 0: t = [p, q, r] with {p, q} = {a, b}.
-        let i = (0..3)
-            .find(|&i| key(t[i], t[(i + 1) % 3]) == key(a, b))
-            .expect("face has the edge");
+        let i = (0..3).find(|&i| key(t[i], t[(i + 1) % 3]) == key(a, b)).expect("face has the edge");
         let (p, q, r) = (t[i], t[(i + 1) % 3], t[(i + 2) % 3]);
         let g = out.mesh.triangles.len() as u32;
         out.mesh.triangles[f as usize] = [p, m, r];
@@ -163,10 +140,7 @@ mod tests {
         // Every inner edge is short now, or the passes ran out.
         let longest_inner = (0..t.n_edges())
             .filter(|&e| t.edge_valence(EdgeId::new(e)) == 2)
-            .map(|e| {
-                (r.mesh.positions[t.edges[e][1].idx()] - r.mesh.positions[t.edges[e][0].idx()])
-                    .norm()
-            })
+            .map(|e| (r.mesh.positions[t.edges[e][1].idx()] - r.mesh.positions[t.edges[e][0].idx()]).norm())
             .fold(0.0, f64::max);
         assert!(longest_inner <= 0.3 + 1e-12 || r.n_bisections >= 5);
         assert_eq!(r.source_face.len(), r.mesh.n_faces());

@@ -163,17 +163,10 @@ impl AtlasReport {
             n_feature_curves: atlas.features.curves.len(),
             n_curves: atlas.curves.len(),
             n_corners: atlas.corners.len(),
-            euler_characteristic_per_component: summary
-                .components
-                .iter()
-                .map(|c| c.euler_characteristic)
-                .collect(),
+            euler_characteristic_per_component: summary.components.iter().map(|c| c.euler_characteristic).collect(),
             splits,
             n_refined_patches: patches.iter().filter(|p| p.n_bisections > 0).count(),
-            sigma_ratio_min: patches
-                .iter()
-                .map(|p| p.sigma_ratio_min)
-                .fold(f64::INFINITY, f64::min),
+            sigma_ratio_min: patches.iter().map(|p| p.sigma_ratio_min).fold(f64::INFINITY, f64::min),
             sigma_ratio_median: medians.get(medians.len() / 2).copied().unwrap_or(0.0),
             features_seconds,
             patches_seconds,

@@ -43,16 +43,9 @@ pub fn check_map(patch: &PatchMesh, uv: &[Vec2], min_relative_area: f64) -> MapC
     let mean = total / areas.len().max(1) as f64;
     let threshold = min_relative_area * mean;
     let n_flipped = areas.iter().filter(|a| a.is_nan() || **a <= 0.0).count();
-    let n_tiny = areas
-        .iter()
-        .filter(|a| **a > 0.0 && **a < threshold)
-        .count();
+    let n_tiny = areas.iter().filter(|a| **a > 0.0 && **a < threshold).count();
     let min = areas.iter().copied().fold(f64::INFINITY, f64::min);
-    MapCheck {
-        n_flipped,
-        n_tiny,
-        min_relative_area: if mean > 0.0 { min / mean } else { 0.0 },
-    }
+    MapCheck { n_flipped, n_tiny, min_relative_area: if mean > 0.0 { min / mean } else { 0.0 } }
 }
 
 /// Area distortion of the map: the ratio of the largest to the smallest
@@ -111,12 +104,7 @@ pub fn sigma_ratios(patch: &PatchMesh, uv: &[Vec2]) -> Vec<f64> {
         .mesh
         .triangles
         .iter()
-        .map(|t| {
-            sigma_ratio(
-                t.map(|v| patch.mesh.positions[v.idx()]),
-                t.map(|v| uv[v.idx()]),
-            )
-        })
+        .map(|t| sigma_ratio(t.map(|v| patch.mesh.positions[v.idx()]), t.map(|v| uv[v.idx()])))
         .collect()
 }
 

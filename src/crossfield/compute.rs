@@ -48,10 +48,7 @@ use super::newton::NewtonSolver;
 use super::singularities::vertex_indices;
 use super::system::NewtonSystem;
 use super::transfer::transfer_to_fine;
-use super::{
-    BoundaryCondition, Crossfield, CrossfieldError, CrossfieldOptions, CrossfieldReport,
-    LevelReport,
-};
+use super::{BoundaryCondition, Crossfield, CrossfieldError, CrossfieldOptions, CrossfieldReport, LevelReport};
 use crate::geom::Vec3;
 use crate::mesh::decimate::decimate;
 use crate::mesh::summary::topology_summary;
@@ -70,15 +67,9 @@ pub fn validate_options(opts: &CrossfieldOptions) -> Result<(), CrossfieldError>
         return bad("symmetry", format!("{} (must be 4 or 6)", opts.symmetry));
     }
     if !(opts.weak_weight > 0.0 && opts.weak_weight.is_finite()) {
-        return bad(
-            "weak_weight",
-            format!("{} (must be positive)", opts.weak_weight),
-        );
+        return bad("weak_weight", format!("{} (must be positive)", opts.weak_weight));
     }
-    for (name, v) in [
-        ("epsilon", opts.epsilon),
-        ("epsilon_start", opts.epsilon_start),
-    ] {
+    for (name, v) in [("epsilon", opts.epsilon), ("epsilon_start", opts.epsilon_start)] {
         if let Some(v) = v
             && !(v > 0.0 && v.is_finite())
         {
@@ -86,21 +77,12 @@ pub fn validate_options(opts: &CrossfieldOptions) -> Result<(), CrossfieldError>
         }
     }
     if !(opts.epsilon_per_edge_length > 0.0 && opts.epsilon_per_edge_length.is_finite()) {
-        return bad(
-            "epsilon_per_edge_length",
-            format!("{} (must be positive)", opts.epsilon_per_edge_length),
-        );
+        return bad("epsilon_per_edge_length", format!("{} (must be positive)", opts.epsilon_per_edge_length));
     }
     if !(opts.continuation_factor > 0.0 && opts.continuation_factor < 1.0) {
-        return bad(
-            "continuation_factor",
-            format!("{} (must be in (0, 1))", opts.continuation_factor),
-        );
+        return bad("continuation_factor", format!("{} (must be in (0, 1))", opts.continuation_factor));
     }
-    for (name, v) in [
-        ("tolerance", opts.tolerance),
-        ("continuation_tolerance", opts.continuation_tolerance),
-    ] {
+    for (name, v) in [("tolerance", opts.tolerance), ("continuation_tolerance", opts.continuation_tolerance)] {
         if !(v > 0.0 && v.is_finite()) {
             return bad(name, format!("{v} (must be positive)"));
         }
@@ -178,40 +160,14 @@ impl<'m> Level<'m> {
         check_orientation(mesh, topo)?;
         let disc = Discretization::new(mesh, topo, opts.symmetry);
         // Edges without any non-degenerate triangle have no energy: fix them.
-        let orphan: Vec<bool> = (0..topo.n_edges())
-            .map(|e| disc.mass_per_edge[e] == 0.0)
-            .collect();
+        let orphan: Vec<bool> = (0..topo.n_edges()).map(|e| disc.mass_per_edge[e] == 0.0).collect();
         let strong = opts.boundary == BoundaryCondition::Strong;
-        let fixed: Vec<bool> = (0..topo.n_edges())
-            .map(|e| orphan[e] || (strong && aligned[e]))
-            .collect();
-        let constrained: Vec<bool> = aligned
-            .iter()
-            .zip(&orphan)
-            .map(|(&a, &o)| a && !o)
-            .collect();
-        let weak_edges = if strong {
-            vec![false; topo.n_edges()]
-        } else {
-            constrained.clone()
-        };
+        let fixed: Vec<bool> = (0..topo.n_edges()).map(|e| orphan[e] || (strong && aligned[e])).collect();
+        let constrained: Vec<bool> = aligned.iter().zip(&orphan).map(|(&a, &o)| a && !o).collect();
+        let weak_edges = if strong { vec![false; topo.n_edges()] } else { constrained.clone() };
         let sys = NewtonSystem::new(topo, &disc, &fixed)?;
-        let diag = mesh
-            .bounding_box()
-            .map_or(1.0, |b| b.diagonal())
-            .max(f64::MIN_POSITIVE);
-        Ok(Self {
-            mesh,
-            topo,
-            depth,
-            disc,
-            aligned,
-            fixed,
-            weak_edges,
-            constrained,
-            sys,
-            diag,
-        })
+        let diag = mesh.bounding_box().map_or(1.0, |b| b.diagonal()).max(f64::MIN_POSITIVE);
+        Ok(Self { mesh, topo, depth, disc, aligned, fixed, weak_edges, constrained, sys, diag })
     }
 
     /// Energy parameters at coherence length `e`.
@@ -253,14 +209,7 @@ fn coarsen(level: &Level, target_faces: usize) -> Option<CoarseMesh> {
     // number of triangles.
     let ratio = (level.mesh.n_faces() as f64 / target_faces.max(1) as f64).sqrt();
     let max_edge = 1.5 * ratio * level.mesh.mean_edge_length();
-    let d = decimate(
-        level.mesh,
-        level.topo,
-        &level.aligned,
-        target_faces,
-        max_edge,
-    )
-    .ok()?;
+    let d = decimate(level.mesh, level.topo, &level.aligned, target_faces, max_edge).ok()?;
     if d.mesh.n_faces() * 4 > level.mesh.n_faces() * 3 {
         return None;
     }
@@ -276,17 +225,10 @@ fn coarsen(level: &Level, target_faces: usize) -> Option<CoarseMesh> {
         .iter()
         .map(|&[a, b]| {
             let (fa, fb) = (d.fine_vertex[a.idx()], d.fine_vertex[b.idx()]);
-            level
-                .topo
-                .edge_between(fa, fb)
-                .is_some_and(|e| level.aligned[e.idx()])
+            level.topo.edge_between(fa, fb).is_some_and(|e| level.aligned[e.idx()])
         })
         .collect();
-    Some(CoarseMesh {
-        mesh: d.mesh,
-        topo,
-        aligned,
-    })
+    Some(CoarseMesh { mesh: d.mesh, topo, aligned })
 }
 
 /// The ε down to which a coarse level of a mesh solved to `eps` works:
@@ -319,10 +261,7 @@ pub fn compute_crossfield(
         return Err(CrossfieldError::EmptyMesh);
     }
     if aligned_edges.len() != topo.n_edges() {
-        return Err(CrossfieldError::AlignedEdgesLength {
-            expected: topo.n_edges(),
-            got: aligned_edges.len(),
-        });
+        return Err(CrossfieldError::AlignedEdgesLength { expected: topo.n_edges(), got: aligned_edges.len() });
     }
     let n = opts.symmetry;
     let level = Level::new(mesh, topo, aligned_edges.to_vec(), 0, opts)?;
@@ -347,25 +286,14 @@ pub fn compute_crossfield(
         // leave it the last quarter.
         let no_aligned = !level.constrained.iter().any(|&c| c);
         let first = progress.sub(0.05, if no_aligned { 0.7 } else { 0.95 });
-        let kind = solve_levels(
-            &level,
-            &mut solver,
-            &mut f,
-            eps,
-            eps0,
-            opts,
-            &first,
-            &mut report,
-        )?;
+        let kind = solve_levels(&level, &mut solver, &mut f, eps, eps0, opts, &first, &mut report)?;
         report.initial_guess = match kind {
             InitialKind::Laplace => "laplace",
             InitialKind::Eigenvector(_) => "eigenvector",
             InitialKind::Mixed(_) => "laplace+eigenvector",
         }
         .into();
-        report
-            .candidate_energies
-            .push((report.initial_guess.clone(), report.energy));
+        report.candidate_energies.push((report.initial_guess.clone(), report.energy));
         // Closed surfaces without any aligned edge get a second candidate,
         // unless their curvature is (nearly) isotropic.
         let curvature = if matches!(kind, InitialKind::Eigenvector(_)) {
@@ -382,19 +310,8 @@ pub fn compute_crossfield(
             level.reset_fixed(&mut g);
             let mut alt = CrossfieldReport::default();
             let second = progress.sub(0.7, 0.95);
-            run_continuation(
-                &level,
-                &mut solver,
-                &mut g,
-                &[eps],
-                None,
-                opts,
-                &second,
-                &mut alt,
-            )?;
-            report
-                .candidate_energies
-                .push(("principal curvature".into(), alt.energy));
+            run_continuation(&level, &mut solver, &mut g, &[eps], None, opts, &second, &mut alt)?;
+            report.candidate_energies.push(("principal curvature".into(), alt.energy));
             report.iterations += alt.iterations;
             report.history.extend(alt.history);
             if alt.converged && alt.energy < report.energy {
@@ -409,8 +326,7 @@ pub fn compute_crossfield(
     } else {
         report.initial_guess = "none (all edges fixed)".into();
         report.converged = true;
-        report.energy =
-            super::energy::total_energy(&level.disc, topo, &f, &level.params(eps, opts));
+        report.energy = super::energy::total_energy(&level.disc, topo, &f, &level.params(eps, opts));
     }
     add_solver_counts(&mut report, &solver);
 
@@ -419,10 +335,7 @@ pub fn compute_crossfield(
     let (cross_per_face, norm_per_face) = face_crosses(mesh, topo, &level.disc, &f);
     report.n_singularities = idx.singularities.len();
     for s in &idx.singularities {
-        *report
-            .singularity_counts
-            .entry(format_index(s.index))
-            .or_default() += 1;
+        *report.singularity_counts.entry(format_index(s.index)).or_default() += 1;
     }
     report.index_sum = idx.index_sum;
     report.euler_characteristic = chi;
@@ -467,27 +380,16 @@ fn solve_levels(
     let target = (level.mesh.n_faces() as f64 * (eps / eps_c).powi(2)) as usize;
     let wants_coarse = opts.multilevel
         && level.mesh.n_faces() >= opts.multilevel_min_faces
-        && target
-            >= if level.depth == 0 {
-                MIN_COARSE_FACES
-            } else {
-                MIN_NESTED_COARSE_FACES
-            }
+        && target >= if level.depth == 0 { MIN_COARSE_FACES } else { MIN_NESTED_COARSE_FACES }
         && eps_c < eps0;
     // The coarse levels (coarsening, their continuation, the transfer) run
     // beside this level's symbolic analysis, which only needs the pattern:
     // on 1M triangles the nested-dissection ordering alone takes ~10 s.
     let coarse = if wants_coarse {
         let t_coarse = Instant::now();
-        let marks = (
-            report.history.len(),
-            report.levels.len(),
-            report.epsilon_schedule.len(),
-        );
-        let (analysis, coarse) = rayon::join(
-            || solver.analyze(),
-            || solve_coarse(level, target, eps_c, eps0, opts, progress, report),
-        );
+        let marks = (report.history.len(), report.levels.len(), report.epsilon_schedule.len());
+        let (analysis, coarse) =
+            rayon::join(|| solver.analyze(), || solve_coarse(level, target, eps_c, eps0, opts, progress, report));
         analysis?;
         coarse_seconds = t_coarse.elapsed().as_secs_f64();
         match coarse {
@@ -513,12 +415,7 @@ fn solve_levels(
         }
         None => {
             let mut schedule = epsilon_schedule(eps0, eps, opts.continuation_factor);
-            let kind = initial_field(
-                solver,
-                f,
-                &level.params(schedule[0], opts),
-                &level.constrained,
-            )?;
+            let kind = initial_field(solver, f, &level.params(schedule[0], opts), &level.constrained)?;
             // Without boundary data, f = 0 is the GL minimizer as long as
             // 1/ε² ≤ λ₁ (the smallest eigenvalue of the connection Laplacian):
             // start the continuation where 1/ε₀² = 4 λ₁, i.e. |f|² ≈ 3/4.
@@ -532,11 +429,7 @@ fn solve_levels(
             (kind, None, schedule)
         }
     };
-    let stages = if previous.is_some() {
-        progress.sub(0.3, 1.0)
-    } else {
-        progress.clone()
-    };
+    let stages = if previous.is_some() { progress.sub(0.3, 1.0) } else { progress.clone() };
     let iterations = report.iterations;
     run_continuation(level, solver, f, &schedule, previous, opts, &stages, report)?;
     report.epsilon_schedule.extend_from_slice(&schedule);
@@ -572,16 +465,7 @@ fn solve_coarse(
     let cl = Level::new(&c.mesh, &c.topo, c.aligned.clone(), level.depth + 1, opts)?;
     let mut cs = NewtonSolver::new(&c.topo, &cl.disc, &cl.sys);
     let mut fc = vec![C64::new(1.0, 0.0); c.topo.n_edges()];
-    let kind = solve_levels(
-        &cl,
-        &mut cs,
-        &mut fc,
-        eps_c,
-        eps0,
-        opts,
-        &progress.sub(0.0, 0.3),
-        report,
-    )?;
+    let kind = solve_levels(&cl, &mut cs, &mut fc, eps_c, eps0, opts, &progress.sub(0.0, 0.3), report)?;
     add_solver_counts(report, &cs);
     let mut g = transfer_to_fine(&c.mesh, &c.topo, &cl.disc, &fc, level.mesh, level.topo);
     level.reset_fixed(&mut g);
@@ -624,13 +508,8 @@ fn run_continuation(
             shrink_cores(solver, f, p / e);
         }
         let last = finest && s + 1 == n_stages;
-        let tol = if last {
-            opts.tolerance
-        } else {
-            opts.continuation_tolerance
-        };
-        let stage_progress =
-            progress.sub(s as f64 / n_stages as f64, (s + 1) as f64 / n_stages as f64);
+        let tol = if last { opts.tolerance } else { opts.continuation_tolerance };
+        let stage_progress = progress.sub(s as f64 / n_stages as f64, (s + 1) as f64 / n_stages as f64);
         let first_record = report.history.len();
         let singular = |g: &[C64]| {
             vertex_indices(level.mesh, level.topo, &level.disc, g)
@@ -646,11 +525,7 @@ fn run_continuation(
             &level.params(e, opts),
             e,
             tol,
-            if last {
-                opts.max_newton_iterations
-            } else {
-                (opts.max_newton_iterations / 3).max(10)
-            },
+            if last { opts.max_newton_iterations } else { (opts.max_newton_iterations / 3).max(10) },
             !last,
             if previous.is_some() { 1.0 } else { 0.0 },
             Some(&singular),
@@ -697,20 +572,13 @@ fn format_index(x: f64) -> String {
 /// Per triangle: the unit direction `u` of one branch (angle `arg(F)/N` in
 /// the triangle frame, `F` the centroid value, i.e. the mean of the three
 /// CR values) and `|F|`.
-pub fn face_crosses(
-    mesh: &TriMesh,
-    topo: &Topology,
-    disc: &Discretization,
-    f: &[C64],
-) -> (Vec<Vec3>, Vec<f64>) {
+pub fn face_crosses(mesh: &TriMesh, topo: &Topology, disc: &Discretization, f: &[C64]) -> (Vec<Vec3>, Vec<f64>) {
     let n = disc.symmetry as f64;
     let mut u = Vec::with_capacity(mesh.n_faces());
     let mut norm = Vec::with_capacity(mesh.n_faces());
     for (t, fd) in disc.faces.iter().enumerate() {
         let fe = &topo.face_edges[t];
-        let c =
-            (fd.rot[0] * f[fe[0].idx()] + fd.rot[1] * f[fe[1].idx()] + fd.rot[2] * f[fe[2].idx()])
-                / 3.0;
+        let c = (fd.rot[0] * f[fe[0].idx()] + fd.rot[1] * f[fe[1].idx()] + fd.rot[2] * f[fe[2].idx()]) / 3.0;
         let (r, nrm) = face_frame(mesh, FaceId::new(t));
         let th = c.arg() / n;
         let dir = r * th.cos() + nrm.cross(&r) * th.sin();
@@ -729,19 +597,14 @@ mod tests {
     use std::sync::atomic::AtomicBool;
 
     fn boundary_flags(topo: &Topology) -> Vec<bool> {
-        (0..topo.n_edges())
-            .map(|e| topo.is_boundary_edge(crate::mesh::EdgeId::new(e)))
-            .collect()
+        (0..topo.n_edges()).map(|e| topo.is_boundary_edge(crate::mesh::EdgeId::new(e))).collect()
     }
 
     #[test]
     fn options_parse_with_defaults_and_reject_unknown_fields() {
         let o: CrossfieldOptions =
             serde_json::from_str(r#"{"symmetry": 6, "boundary": "weak", "epsilon": 0.1}"#).unwrap();
-        assert_eq!(
-            (o.symmetry, o.boundary, o.epsilon),
-            (6, BoundaryCondition::Weak, Some(0.1))
-        );
+        assert_eq!((o.symmetry, o.boundary, o.epsilon), (6, BoundaryCondition::Weak, Some(0.1)));
         assert_eq!(o.continuation_factor, 0.25);
         assert!(serde_json::from_str::<CrossfieldOptions>(r#"{"symetry": 4}"#).is_err());
         assert!(serde_json::from_str::<CrossfieldOptions>(r#"{"boundary": "soft"}"#).is_err());
@@ -752,28 +615,11 @@ mod tests {
         let mesh = fixtures::disk(3);
         let topo = Topology::new(&mesh);
         let flags = boundary_flags(&topo);
-        let run = |o: &CrossfieldOptions, flags: &[bool]| {
-            compute_crossfield(&mesh, &topo, flags, o, &Progress::none())
-        };
-        let bad = CrossfieldOptions {
-            symmetry: 5,
-            ..Default::default()
-        };
-        assert!(matches!(
-            run(&bad, &flags),
-            Err(CrossfieldError::InvalidOption {
-                name: "symmetry",
-                ..
-            })
-        ));
-        let bad = CrossfieldOptions {
-            continuation_factor: 1.5,
-            ..Default::default()
-        };
-        assert!(matches!(
-            run(&bad, &flags),
-            Err(CrossfieldError::InvalidOption { .. })
-        ));
+        let run = |o: &CrossfieldOptions, flags: &[bool]| compute_crossfield(&mesh, &topo, flags, o, &Progress::none());
+        let bad = CrossfieldOptions { symmetry: 5, ..Default::default() };
+        assert!(matches!(run(&bad, &flags), Err(CrossfieldError::InvalidOption { name: "symmetry", .. })));
+        let bad = CrossfieldOptions { continuation_factor: 1.5, ..Default::default() };
+        assert!(matches!(run(&bad, &flags), Err(CrossfieldError::InvalidOption { .. })));
         assert!(matches!(
             run(&CrossfieldOptions::default(), &flags[1..]),
             Err(CrossfieldError::AlignedEdgesLength { .. })
@@ -781,13 +627,7 @@ mod tests {
         let empty = TriMesh::default();
         let et = Topology::new(&empty);
         assert!(matches!(
-            compute_crossfield(
-                &empty,
-                &et,
-                &[],
-                &CrossfieldOptions::default(),
-                &Progress::none()
-            ),
+            compute_crossfield(&empty, &et, &[], &CrossfieldOptions::default(), &Progress::none()),
             Err(CrossfieldError::EmptyMesh)
         ));
     }
@@ -803,13 +643,7 @@ mod tests {
         let topo = Topology::new(&mesh);
         let cancel = Arc::new(AtomicBool::new(true));
         let p = Progress::new(Arc::new(Nothing), cancel);
-        let r = compute_crossfield(
-            &mesh,
-            &topo,
-            &boundary_flags(&topo),
-            &CrossfieldOptions::default(),
-            &p,
-        );
+        let r = compute_crossfield(&mesh, &topo, &boundary_flags(&topo), &CrossfieldOptions::default(), &p);
         assert!(matches!(r, Err(CrossfieldError::Cancelled(_))));
     }
 
@@ -817,14 +651,9 @@ mod tests {
     fn singularities_json_has_the_documented_shape() {
         let mesh = fixtures::disk(6);
         let topo = Topology::new(&mesh);
-        let field = compute_crossfield(
-            &mesh,
-            &topo,
-            &boundary_flags(&topo),
-            &CrossfieldOptions::default(),
-            &Progress::none(),
-        )
-        .unwrap();
+        let field =
+            compute_crossfield(&mesh, &topo, &boundary_flags(&topo), &CrossfieldOptions::default(), &Progress::none())
+                .unwrap();
         let mut buf = Vec::new();
         crate::crossfield::write_singularities_json(&field, &mut buf).unwrap();
         let v: serde_json::Value = serde_json::from_slice(&buf).unwrap();
@@ -833,15 +662,9 @@ mod tests {
         assert_eq!(v["index_sum"], 1.0);
         let s = v["singularities"].as_array().unwrap();
         assert_eq!(s.len(), field.singularities.len());
-        assert!(
-            s.iter()
-                .all(|x| x["position"].as_array().unwrap().len() == 3 && x["vertex"].is_u64())
-        );
+        assert!(s.iter().all(|x| x["position"].as_array().unwrap().len() == 3 && x["vertex"].is_u64()));
         let report = serde_json::to_value(&field.report).unwrap();
-        assert!(
-            report["history"].as_array().unwrap().len()
-                >= report["iterations"].as_u64().unwrap() as usize
-        );
+        assert!(report["history"].as_array().unwrap().len() >= report["iterations"].as_u64().unwrap() as usize);
     }
 
     #[test]
@@ -851,10 +674,6 @@ mod tests {
         assert_eq!(s, vec![1.0, 0.5, 0.25, 0.1]);
         assert_eq!(epsilon_schedule(0.1, 0.1, 0.5), vec![0.1]);
         assert_eq!(epsilon_schedule(0.4, 0.099, 0.5), vec![0.4, 0.2, 0.099]);
-        assert_eq!(
-            epsilon_schedule(0.8, 0.04, 0.25),
-            vec![0.8, 0.2, 0.04],
-            "0.05 is within 2 of 0.04"
-        );
+        assert_eq!(epsilon_schedule(0.8, 0.04, 0.25), vec![0.8, 0.2, 0.04], "0.05 is within 2 of 0.04");
     }
 }

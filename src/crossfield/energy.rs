@@ -85,12 +85,7 @@ fn penalty_moments(u: &[C64; 6]) -> ([f64; 6], f64) {
     let mut qmq = 0.0;
     for m in 0..6 {
         let row = &P2_MASS_OVER_AREA[m];
-        let s = row[0] * q[0]
-            + row[1] * q[1]
-            + row[2] * q[2]
-            + row[3] * q[3]
-            + row[4] * q[4]
-            + row[5] * q[5];
+        let s = row[0] * q[0] + row[1] * q[1] + row[2] * q[2] + row[3] * q[3] + row[4] * q[4] + row[5] * q[5];
         mq[m] = s;
         qmq += q[m] * s;
     }
@@ -120,17 +115,8 @@ pub fn element_energy(fd: &FaceData, f: [C64; 3], inv_eps2: f64) -> f64 {
 }
 
 /// Energy, gradient and Hessian of one triangle (edge-frame unknowns).
-pub fn element_derivatives(
-    fd: &FaceData,
-    f: [C64; 3],
-    inv_eps2: f64,
-    kind: HessianKind,
-) -> ElementResult {
-    let mut out = ElementResult {
-        energy: 0.0,
-        grad: [0.0; 6],
-        hess: [[0.0; 6]; 6],
-    };
+pub fn element_derivatives(fd: &FaceData, f: [C64; 3], inv_eps2: f64, kind: HessianKind) -> ElementResult {
+    let mut out = ElementResult { energy: 0.0, grad: [0.0; 6], hess: [[0.0; 6]; 6] };
     if fd.area == 0.0 {
         return out;
     }
@@ -229,10 +215,7 @@ pub fn element_derivatives(
         let (ck, sk) = (fd.rot[k].re, fd.rot[k].im);
         for l in 0..3 {
             let (cl, sl) = (fd.rot[l].re, fd.rot[l].im);
-            let b = [
-                [h[2 * k][2 * l], h[2 * k][2 * l + 1]],
-                [h[2 * k + 1][2 * l], h[2 * k + 1][2 * l + 1]],
-            ];
+            let b = [[h[2 * k][2 * l], h[2 * k][2 * l + 1]], [h[2 * k + 1][2 * l], h[2 * k + 1][2 * l + 1]]];
             // B R_l with R_l = [[cl, -sl], [sl, cl]].
             let br = [
                 [b[0][0] * cl + b[0][1] * sl, -b[0][0] * sl + b[0][1] * cl],
@@ -274,11 +257,7 @@ pub fn total_energy(disc: &Discretization, topo: &Topology, f: &[C64], p: &Energ
                 .enumerate()
                 .map(|(i, fd)| {
                     let fe = &topo.face_edges[base + i];
-                    element_energy(
-                        fd,
-                        [f[fe[0].idx()], f[fe[1].idx()], f[fe[2].idx()]],
-                        p.inv_eps2,
-                    )
+                    element_energy(fd, [f[fe[0].idx()], f[fe[1].idx()], f[fe[2].idx()]], p.inv_eps2)
                 })
                 .sum::<f64>()
         })
@@ -287,10 +266,7 @@ pub fn total_energy(disc: &Discretization, topo: &Topology, f: &[C64], p: &Energ
     if p.weak_coef > 0.0 {
         for (i, &w) in p.weak_edges.iter().enumerate() {
             if w {
-                e += 0.5
-                    * p.weak_coef
-                    * disc.length_per_edge[i]
-                    * (f[i] - C64::new(1.0, 0.0)).norm_sqr();
+                e += 0.5 * p.weak_coef * disc.length_per_edge[i] * (f[i] - C64::new(1.0, 0.0)).norm_sqr();
             }
         }
     }
@@ -306,11 +282,7 @@ mod tests {
     use rand::{Rng, SeedableRng};
 
     fn face(rng: &mut StdRng) -> FaceData {
-        let p = [
-            Vec3::new(0.0, 0.0, 0.0),
-            Vec3::new(1.0, 0.2, 0.1),
-            Vec3::new(0.3, 0.8, -0.2),
-        ];
+        let p = [Vec3::new(0.0, 0.0, 0.0), Vec3::new(1.0, 0.2, 0.1), Vec3::new(0.3, 0.8, -0.2)];
         let area = 0.5 * (p[1] - p[0]).cross(&(p[2] - p[0])).norm();
         FaceData {
             area,
@@ -328,11 +300,7 @@ mod tests {
         let mut rng = StdRng::seed_from_u64(7);
         for trial in 0..20 {
             let fd = face(&mut rng);
-            let inv_eps2 = if trial == 0 {
-                0.0
-            } else {
-                rng.random_range(0.5..50.0)
-            };
+            let inv_eps2 = if trial == 0 { 0.0 } else { rng.random_range(0.5..50.0) };
             let x: [f64; 6] = std::array::from_fn(|_| rng.random_range(-1.2..1.2));
             let r = element_derivatives(&fd, unpack(&x), inv_eps2, HessianKind::Exact);
             assert!((r.energy - element_energy(&fd, unpack(&x), inv_eps2)).abs() < 1e-12);
@@ -342,22 +310,14 @@ mod tests {
                 let mut xm = x;
                 xp[i] += h;
                 xm[i] -= h;
-                let fdg = (element_energy(&fd, unpack(&xp), inv_eps2)
-                    - element_energy(&fd, unpack(&xm), inv_eps2))
+                let fdg = (element_energy(&fd, unpack(&xp), inv_eps2) - element_energy(&fd, unpack(&xm), inv_eps2))
                     / (2.0 * h);
-                assert!(
-                    (fdg - r.grad[i]).abs() < 1e-6 * (1.0 + fdg.abs()),
-                    "grad {i}: {fdg} vs {}",
-                    r.grad[i]
-                );
+                assert!((fdg - r.grad[i]).abs() < 1e-6 * (1.0 + fdg.abs()), "grad {i}: {fdg} vs {}", r.grad[i]);
                 let gp = element_derivatives(&fd, unpack(&xp), inv_eps2, HessianKind::Exact).grad;
                 let gm = element_derivatives(&fd, unpack(&xm), inv_eps2, HessianKind::Exact).grad;
                 for j in 0..6 {
                     let fdh = (gp[j] - gm[j]) / (2.0 * h);
-                    assert!(
-                        (fdh - r.hess[j][i]).abs() < 1e-5 * (1.0 + fdh.abs()),
-                        "hess {j}{i}"
-                    );
+                    assert!((fdh - r.hess[j][i]).abs() < 1e-5 * (1.0 + fdh.abs()), "hess {j}{i}");
                 }
             }
         }

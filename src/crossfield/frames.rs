@@ -97,11 +97,7 @@ pub fn edge_direction(mesh: &TriMesh, topo: &Topology, e: EdgeId) -> Vec3 {
 
 /// Unit normal `n̂^p` of edge `p`: normalized mean of its triangles' normals.
 pub fn edge_normal(mesh: &TriMesh, topo: &Topology, e: EdgeId) -> Vec3 {
-    let n: Vec3 = topo
-        .edge_faces(e)
-        .iter()
-        .map(|&f| mesh.face_normal(f))
-        .sum();
+    let n: Vec3 = topo.edge_faces(e).iter().map(|&f| mesh.face_normal(f)).sum();
     let l = n.norm();
     if l > 0.0 { n / l } else { n }
 }
@@ -115,11 +111,7 @@ fn face_rotations(mesh: &TriMesh, topo: &Topology, f: FaceId, n: u32) -> [C64; 3
         let d = edge_direction(mesh, topo, *e);
         let z = C64::new(d.dot(&r), d.dot(&t));
         let m = z.norm();
-        out[k] = if m > 0.0 {
-            complex_pow(z / m, n)
-        } else {
-            C64::new(1.0, 0.0)
-        };
+        out[k] = if m > 0.0 { complex_pow(z / m, n) } else { C64::new(1.0, 0.0) };
     }
     out
 }
@@ -170,21 +162,11 @@ impl Discretization {
                 mass_per_edge[e.idx()] += fd.area / 3.0;
             }
         }
-        let length_per_edge = topo
-            .edges
-            .iter()
-            .map(|[a, b]| (mesh.positions[b.idx()] - mesh.positions[a.idx()]).norm())
-            .collect();
+        let length_per_edge =
+            topo.edges.iter().map(|[a, b]| (mesh.positions[b.idx()] - mesh.positions[a.idx()]).norm()).collect();
         let n_degenerate_faces = faces.iter().filter(|f| f.area == 0.0).count();
         let area = faces.iter().map(|f| f.area).sum();
-        Self {
-            symmetry: n,
-            faces,
-            mass_per_edge,
-            length_per_edge,
-            area,
-            n_degenerate_faces,
-        }
+        Self { symmetry: n, faces, mass_per_edge, length_per_edge, area, n_degenerate_faces }
     }
 }
 
@@ -224,9 +206,6 @@ mod tests {
         assert!(check_orientation(&mesh, &topo).is_ok());
         mesh.flip_face(FaceId(3));
         let topo = Topology::new(&mesh);
-        assert!(matches!(
-            check_orientation(&mesh, &topo),
-            Err(CrossfieldError::InconsistentOrientation { .. })
-        ));
+        assert!(matches!(check_orientation(&mesh, &topo), Err(CrossfieldError::InconsistentOrientation { .. })));
     }
 }

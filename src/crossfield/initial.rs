@@ -90,10 +90,7 @@ pub fn initial_field(
             .first()
             .is_some_and(|fc| comp_constrained[comps.component_per_face[fc.idx()] as usize])
     };
-    let quad = EnergyParams {
-        inv_eps2: 0.0,
-        ..*params
-    };
+    let quad = EnergyParams { inv_eps2: 0.0, ..*params };
     // Dirichlet (+ weak) Hessian and gradient at f_free = 0: one Newton step solves the quadratic.
     let asm = sys.assemble(topo, disc, f, &quad, HessianKind::Exact);
     // Shifted by a small multiple of the mass so that unconstrained components are regular.
@@ -115,20 +112,10 @@ pub fn initial_field(
         let mut y: Vec<f64> = (0..n)
             .map(|i| {
                 let e = sys.free_edges[i / 2] as usize;
-                if edge_constrained_comp(e) {
-                    0.0
-                } else {
-                    hash_unit(i as u64)
-                }
+                if edge_constrained_comp(e) { 0.0 } else { hash_unit(i as u64) }
             })
             .collect();
-        let norm_m = |v: &[f64]| {
-            v.iter()
-                .zip(&mass)
-                .map(|(a, m)| a * a * m)
-                .sum::<f64>()
-                .sqrt()
-        };
+        let norm_m = |v: &[f64]| v.iter().zip(&mass).map(|(a, m)| a * a * m).sum::<f64>().sqrt();
         let mut rq_old = f64::INFINITY;
         let mut rq = f64::INFINITY;
         for _ in 0..MAX_INVERSE_ITERATIONS {
@@ -139,13 +126,7 @@ pub fn initial_field(
             let mut z: Vec<f64> = y.iter().zip(&mass).map(|(a, m)| a * m / nm).collect();
             solver.solve(&mut z)?;
             // Rayleigh quotient estimate of the shifted operator: ‖y‖²_M / ⟨y, z⟩_M-ish.
-            let yz: f64 = y
-                .iter()
-                .zip(&z)
-                .zip(&mass)
-                .map(|((a, b), m)| a * b * m)
-                .sum::<f64>()
-                / nm;
+            let yz: f64 = y.iter().zip(&z).zip(&mass).map(|((a, b), m)| a * b * m).sum::<f64>() / nm;
             rq = if yz != 0.0 { 1.0 / yz } else { f64::INFINITY };
             y = z;
             if (rq - rq_old).abs() <= RAYLEIGH_TOLERANCE * rq.abs() {
@@ -240,11 +221,7 @@ pub fn principal_curvature_field(
         .iter()
         .map(|z| {
             let m = z.norm();
-            if m > 1e-12 * max && m > 0.0 {
-                z / m
-            } else {
-                C64::new(1.0, 0.0)
-            }
+            if m > 1e-12 * max && m > 0.0 { z / m } else { C64::new(1.0, 0.0) }
         })
         .collect();
     (field, if sum_b > 0.0 { sum_z / sum_b } else { 0.0 })

@@ -207,12 +207,7 @@ impl<'a> NewtonSolver<'a> {
     ///
     /// # Errors
     /// [`CrossfieldError::Linalg`] when the matrix is not positive definite.
-    pub fn factor(
-        &mut self,
-        mut values: Vec<f64>,
-        mass: &[f64],
-        mu: f64,
-    ) -> Result<(), CrossfieldError> {
+    pub fn factor(&mut self, mut values: Vec<f64>, mass: &[f64], mu: f64) -> Result<(), CrossfieldError> {
         self.n_factorizations += 1;
         self.shift_values(&mut values, mass, mu);
         self.analyze()?;
@@ -228,8 +223,7 @@ impl<'a> NewtonSolver<'a> {
         let diag = self.sys.diagonal(values);
         let mean = diag.iter().map(|d| d.abs()).sum::<f64>() / diag.len().max(1) as f64;
         let ones = vec![1.0; diag.len()];
-        self.sys
-            .add_to_diagonal(values, &ones, SHIFT * mean.max(f64::MIN_POSITIVE));
+        self.sys.add_to_diagonal(values, &ones, SHIFT * mean.max(f64::MIN_POSITIVE));
         if mu > 0.0 {
             self.sys.add_to_diagonal(values, mass, mu);
         }
@@ -293,14 +287,7 @@ impl<'a> NewtonSolver<'a> {
     /// at `μ_new` would fail. `d = −(H + μM/ε²)⁻¹ g` is one step of inverse
     /// iteration, so it leans towards the softest (possibly negative)
     /// directions, which is what makes the test sharp in practice.
-    fn curvature_allows(
-        &self,
-        hess_values: &[f64],
-        mass: &[f64],
-        d: &[f64],
-        eps: f64,
-        mu_new: f64,
-    ) -> bool {
+    fn curvature_allows(&self, hess_values: &[f64], mass: &[f64], d: &[f64], eps: f64, mu_new: f64) -> bool {
         let mut hd = vec![0.0; d.len()];
         self.sys.sym_matvec(hess_values, d, &mut hd);
         let dhd: f64 = d.iter().zip(&hd).map(|(a, b)| a * b).sum();
@@ -314,11 +301,7 @@ impl<'a> NewtonSolver<'a> {
 
     /// CR mass per real unknown.
     pub fn dof_mass(&self) -> Vec<f64> {
-        self.sys
-            .free_edges
-            .iter()
-            .flat_map(|&e| [self.disc.mass_per_edge[e as usize]; 2])
-            .collect()
+        self.sys.free_edges.iter().flat_map(|&e| [self.disc.mass_per_edge[e as usize]; 2]).collect()
     }
 
     /// Solve with the last factorization, in place.
@@ -326,9 +309,9 @@ impl<'a> NewtonSolver<'a> {
     /// # Errors
     /// [`CrossfieldError::Linalg`] when nothing was factored or sizes differ.
     pub fn solve(&mut self, rhs: &mut [f64]) -> Result<(), CrossfieldError> {
-        let c = self.chol.as_mut().ok_or(CrossfieldError::Linalg(
-            crate::linalg::LinalgError::Internal("solve before factorization".into()),
-        ))?;
+        let c = self.chol.as_mut().ok_or(CrossfieldError::Linalg(crate::linalg::LinalgError::Internal(
+            "solve before factorization".into(),
+        )))?;
         c.solve_in_place(rhs)?;
         Ok(())
     }
@@ -392,9 +375,7 @@ impl<'a> NewtonSolver<'a> {
         };
         for it in 0..=max_iter {
             progress.check()?;
-            let asm = self
-                .sys
-                .assemble(self.topo, self.disc, f, params, HessianKind::Exact);
+            let asm = self.sys.assemble(self.topo, self.disc, f, params, HessianKind::Exact);
             let res = self.residual(&asm.grad, eps);
             out.residual = res;
             out.energy = asm.energy;
@@ -428,9 +409,7 @@ impl<'a> NewtonSolver<'a> {
                 Some(sv) if !stop_on_stall => {
                     singular.push(sv(f));
                     it >= SETTLE_STEPS
-                        && singular[it - SETTLE_STEPS..]
-                            .iter()
-                            .all(|s| *s == singular[it])
+                        && singular[it - SETTLE_STEPS..].iter().all(|s| *s == singular[it])
                         && residuals[it - SETTLE_STEPS..]
                             .iter()
                             .chain(std::iter::once(&res))
@@ -489,10 +468,7 @@ impl<'a> NewtonSolver<'a> {
                     let mut factored = false;
                     indefinite = false;
                     for _ in 0..MAX_SHIFT_RAISES {
-                        if self
-                            .factor(asm.hess_values.clone(), &mass, mu * inv_eps2)
-                            .is_ok()
-                        {
+                        if self.factor(asm.hess_values.clone(), &mass, mu * inv_eps2).is_ok() {
                             factored = true;
                             break;
                         }
@@ -500,13 +476,7 @@ impl<'a> NewtonSolver<'a> {
                         mu = if mu == 0.0 { MU_FIRST } else { mu * MU_STEP };
                     }
                     if !factored {
-                        let m = self.sys.assemble(
-                            self.topo,
-                            self.disc,
-                            f,
-                            params,
-                            HessianKind::Modified,
-                        );
+                        let m = self.sys.assemble(self.topo, self.disc, f, params, HessianKind::Modified);
                         self.factor(m.hess_values, &mass, 0.0)?;
                         record.hessian = "modified";
                     }
@@ -529,8 +499,7 @@ impl<'a> NewtonSolver<'a> {
             let mut accepted = false;
             for _ in 0..MAX_HALVINGS {
                 for (i, &e) in self.sys.free_edges.iter().enumerate() {
-                    trial[e as usize] =
-                        f[e as usize] + C64::new(alpha * d[2 * i], alpha * d[2 * i + 1]);
+                    trial[e as usize] = f[e as usize] + C64::new(alpha * d[2 * i], alpha * d[2 * i + 1]);
                 }
                 let e_trial = total_energy(self.disc, self.topo, &trial, params);
                 if e_trial <= asm.energy + ARMIJO * alpha * slope {
@@ -577,9 +546,7 @@ mod tests {
         let mesh = fixtures::disk(10);
         let topo = Topology::new(&mesh);
         let disc = Discretization::new(&mesh, &topo, 4);
-        let fixed: Vec<bool> = (0..topo.n_edges())
-            .map(|e| topo.is_boundary_edge(EdgeId::new(e)))
-            .collect();
+        let fixed: Vec<bool> = (0..topo.n_edges()).map(|e| topo.is_boundary_edge(EdgeId::new(e))).collect();
         let sys = NewtonSystem::new(&topo, &disc, &fixed).unwrap();
         let mut solver = NewtonSolver::new(&topo, &disc, &sys);
         solver.krylov_min_dofs = krylov_min_dofs;
@@ -588,11 +555,7 @@ mod tests {
         let mut history = Vec::new();
         let mut energy = 0.0;
         for (s, eps) in [0.8, 0.5].into_iter().enumerate() {
-            let params = EnergyParams {
-                inv_eps2: 1.0 / (eps * eps),
-                weak_coef: 0.0,
-                weak_edges: &weak,
-            };
+            let params = EnergyParams { inv_eps2: 1.0 / (eps * eps), weak_coef: 0.0, weak_edges: &weak };
             let out = solver
                 .minimize(
                     &mut f,
@@ -618,10 +581,7 @@ mod tests {
         let (e_direct, f_direct, h_direct) = run(usize::MAX);
         let (e_cg, f_cg, h_cg) = run(0);
         assert!(h_direct.iter().all(|r| r.hessian != "exact-cg"));
-        assert!(
-            h_cg.iter()
-                .any(|r| r.hessian == "exact-cg" && r.krylov_iterations > 0)
-        );
+        assert!(h_cg.iter().any(|r| r.hessian == "exact-cg" && r.krylov_iterations > 0));
         let show = |h: &[NewtonRecord]| {
             h.iter()
                 .map(|r| {
@@ -639,11 +599,7 @@ mod tests {
             show(&h_direct),
             show(&h_cg)
         );
-        let diff = f_direct
-            .iter()
-            .zip(&f_cg)
-            .map(|(a, b)| (a - b).norm())
-            .fold(0.0, f64::max);
+        let diff = f_direct.iter().zip(&f_cg).map(|(a, b)| (a - b).norm()).fold(0.0, f64::max);
         assert!(diff < 1e-6, "{diff}");
     }
 }

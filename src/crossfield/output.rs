@@ -63,19 +63,12 @@ pub fn write_singularities_json(field: &Crossfield, w: impl Write) -> std::io::R
 
 /// Per triangle `v = n × u` (the second branch of the cross).
 fn cross_v(field: &Crossfield, mesh: &TriMesh) -> Vec<Vec3> {
-    field
-        .cross_per_face
-        .iter()
-        .enumerate()
-        .map(|(f, u)| mesh.face_normal(FaceId::new(f)).cross(u))
-        .collect()
+    field.cross_per_face.iter().enumerate().map(|(f, u)| mesh.face_normal(FaceId::new(f)).cross(u)).collect()
 }
 
 /// Check that `field` was computed on `mesh`.
 fn check_sizes(field: &Crossfield, mesh: &TriMesh) -> Result<(), WriteError> {
-    if field.cross_per_face.len() != mesh.n_faces()
-        || field.index_per_vertex.len() != mesh.n_vertices()
-    {
+    if field.cross_per_face.len() != mesh.n_faces() || field.index_per_vertex.len() != mesh.n_vertices() {
         return Err(WriteError::Io(std::io::Error::new(
             std::io::ErrorKind::InvalidInput,
             format!(
@@ -94,11 +87,7 @@ fn check_sizes(field: &Crossfield, mesh: &TriMesh) -> Result<(), WriteError> {
 ///
 /// # Errors
 /// [`WriteError`] when the sizes do not match or on I/O failure.
-pub fn write_crossfield_vtu(
-    field: &Crossfield,
-    mesh: &TriMesh,
-    w: impl Write,
-) -> Result<(), WriteError> {
+pub fn write_crossfield_vtu(field: &Crossfield, mesh: &TriMesh, w: impl Write) -> Result<(), WriteError> {
     check_sizes(field, mesh)?;
     let n = f64::from(field.symmetry);
     let mut vtu = VtuMesh::from_surface(mesh);
@@ -107,11 +96,7 @@ pub fn write_crossfield_vtu(
         DataArray::vectors("cross_v", &cross_v(field, mesh)),
         DataArray::f64("norm", 1, field.norm_per_face.as_slice()),
     ];
-    let index: Vec<f64> = field
-        .index_per_vertex
-        .iter()
-        .map(|&k| f64::from(k) / n)
-        .collect();
+    let index: Vec<f64> = field.index_per_vertex.iter().map(|&k| f64::from(k) / n).collect();
     vtu.point_data = vec![DataArray::f64("index", 1, index)];
     write_vtu(w, &vtu, &VtuOptions::default())
 }
@@ -120,11 +105,7 @@ pub fn write_crossfield_vtu(
 ///
 /// # Errors
 /// [`WriteError`] when the sizes do not match or on I/O failure.
-pub fn write_crossfield_msh(
-    field: &Crossfield,
-    mesh: &TriMesh,
-    w: impl Write,
-) -> Result<(), WriteError> {
+pub fn write_crossfield_msh(field: &Crossfield, mesh: &TriMesh, w: impl Write) -> Result<(), WriteError> {
     check_sizes(field, mesh)?;
     let mut model = MshModel::from_surface(mesh);
     let flat = |v: &[Vec3]| v.iter().flat_map(|x| [x.x, x.y, x.z]).collect::<Vec<f64>>();

@@ -64,12 +64,7 @@ pub fn linear_zero(g: &[C64; 3]) -> Option<[f64; 3]> {
 }
 
 /// Indices of the field `f` (edge frames) at every vertex.
-pub fn vertex_indices(
-    mesh: &TriMesh,
-    topo: &Topology,
-    disc: &Discretization,
-    f: &[C64],
-) -> IndexField {
+pub fn vertex_indices(mesh: &TriMesh, topo: &Topology, disc: &Discretization, f: &[C64]) -> IndexField {
     let n = disc.symmetry as f64;
     let nv = mesh.n_vertices();
     let mut turning = vec![0.0; nv];
@@ -86,15 +81,9 @@ pub fn vertex_indices(
     let mut face_index: Vec<(usize, i32)> = Vec::new();
     for (t, tri) in mesh.triangles.iter().enumerate() {
         let fe = &topo.face_edges[t];
-        let big_f = to_face_frame(
-            &disc.faces[t],
-            [f[fe[0].idx()], f[fe[1].idx()], f[fe[2].idx()]],
-        );
-        let th = corner_angles(
-            &mesh.positions[tri[0].idx()],
-            &mesh.positions[tri[1].idx()],
-            &mesh.positions[tri[2].idx()],
-        );
+        let big_f = to_face_frame(&disc.faces[t], [f[fe[0].idx()], f[fe[1].idx()], f[fe[2].idx()]]);
+        let th =
+            corner_angles(&mesh.positions[tri[0].idx()], &mesh.positions[tri[1].idx()], &mesh.positions[tri[2].idx()]);
         let mut sum = 0.0;
         for i in 0..3 {
             let d = (big_f[(i + 2) % 3] * big_f[i].conj()).arg();
@@ -120,10 +109,7 @@ pub fn vertex_indices(
     let n_face_windings = face_index.len();
     for &(t, w) in &face_index {
         let fe = &topo.face_edges[t];
-        let big_f = to_face_frame(
-            &disc.faces[t],
-            [f[fe[0].idx()], f[fe[1].idx()], f[fe[2].idx()]],
-        );
+        let big_f = to_face_frame(&disc.faces[t], [f[fe[0].idx()], f[fe[1].idx()], f[fe[2].idx()]]);
         let corner = linear_zero(&corner_values(&big_f))
             .map(|l| (0..3).max_by(|&a, &b| l[a].total_cmp(&l[b])).unwrap_or(0))
             .unwrap_or(0);
@@ -135,49 +121,27 @@ pub fn vertex_indices(
         .filter(|&(_, &k)| k != 0)
         .map(|(v, &k)| {
             let v = VertexId::new(v);
-            Singularity {
-                position: singularity_position(mesh, topo, disc, f, v),
-                index: k as f64 / n,
-                vertex: v,
-            }
+            Singularity { position: singularity_position(mesh, topo, disc, f, v), index: k as f64 / n, vertex: v }
         })
         .collect();
     let index_sum = index_per_vertex.iter().map(|&k| k as i64).sum::<i64>() as f64 / n;
-    IndexField {
-        index_per_vertex,
-        singularities,
-        index_sum,
-        n_face_windings,
-    }
+    IndexField { index_per_vertex, singularities, index_sum, n_face_windings }
 }
 
 /// The zero of the field nearest to `v` among the triangles of its star
 /// (inside a triangle, up to round-off); `v`'s position when there is none.
-fn singularity_position(
-    mesh: &TriMesh,
-    topo: &Topology,
-    disc: &Discretization,
-    f: &[C64],
-    v: VertexId,
-) -> Vec3 {
+fn singularity_position(mesh: &TriMesh, topo: &Topology, disc: &Discretization, f: &[C64], v: VertexId) -> Vec3 {
     let pv = mesh.positions[v.idx()];
     let mut best: Option<(f64, Vec3)> = None;
     for &t in topo.vertex_faces(v) {
         let FaceId(ti) = t;
         let ti = ti as usize;
         let fe = &topo.face_edges[ti];
-        let big_f = to_face_frame(
-            &disc.faces[ti],
-            [f[fe[0].idx()], f[fe[1].idx()], f[fe[2].idx()]],
-        );
+        let big_f = to_face_frame(&disc.faces[ti], [f[fe[0].idx()], f[fe[1].idx()], f[fe[2].idx()]]);
         if let Some(l) = linear_zero(&corner_values(&big_f))
             && l.iter().all(|&x| x >= -1e-9)
         {
-            let p: Vec3 = mesh.triangles[ti]
-                .iter()
-                .zip(l)
-                .map(|(c, w)| mesh.positions[c.idx()] * w)
-                .sum();
+            let p: Vec3 = mesh.triangles[ti].iter().zip(l).map(|(c, w)| mesh.positions[c.idx()] * w).sum();
             let d = (p - pv).norm();
             if best.is_none_or(|(bd, _)| d < bd) {
                 best = Some((d, p));

@@ -59,11 +59,7 @@ impl NewtonSystem {
     ///
     /// # Errors
     /// [`CrossfieldError::Linalg`] when the structure cannot be built.
-    pub fn new(
-        topo: &Topology,
-        disc: &Discretization,
-        fixed: &[bool],
-    ) -> Result<Self, CrossfieldError> {
+    pub fn new(topo: &Topology, disc: &Discretization, fixed: &[bool]) -> Result<Self, CrossfieldError> {
         let mut free_index = vec![NONE; topo.n_edges()];
         let mut free_edges = Vec::new();
         for e in 0..topo.n_edges() {
@@ -141,13 +137,7 @@ impl NewtonSystem {
             })
             .collect();
         let symbolic = SymbolicSparseColMat::new_checked(n, n, col_ptr, None, row_idx);
-        Ok(Self {
-            free_index,
-            free_edges,
-            symbolic,
-            slots,
-            diag_slot,
-        })
+        Ok(Self { free_index, free_edges, symbolic, slots, diag_slot })
     }
 
     /// Assemble energy, gradient and Hessian (lower triangle) at `f`.
@@ -170,12 +160,7 @@ impl NewtonSystem {
                 .enumerate()
                 .map(|(i, fd)| {
                     let fe = &topo.face_edges[base + i];
-                    element_derivatives(
-                        fd,
-                        [f[fe[0].idx()], f[fe[1].idx()], f[fe[2].idx()]],
-                        params.inv_eps2,
-                        kind,
-                    )
+                    element_derivatives(fd, [f[fe[0].idx()], f[fe[1].idx()], f[fe[2].idx()]], params.inv_eps2, kind)
                 })
                 .collect();
             for (i, r) in results.iter().enumerate() {
@@ -217,11 +202,7 @@ impl NewtonSystem {
                 }
             }
         }
-        Assembled {
-            energy,
-            grad,
-            hess_values,
-        }
+        Assembled { energy, grad, hess_values }
     }
 
     /// Add `shift · d_i` to each diagonal entry `i`.
@@ -267,12 +248,10 @@ impl NewtonSystem {
     /// [`CrossfieldError::Linalg`] when the value count does not match.
     pub fn matrix(&self, values: Vec<f64>) -> Result<SparseMatrix, CrossfieldError> {
         if values.len() != self.symbolic.row_idx().len() {
-            return Err(CrossfieldError::Linalg(
-                crate::linalg::LinalgError::PatternMismatch {
-                    expected: self.symbolic.row_idx().len(),
-                    got: values.len(),
-                },
-            ));
+            return Err(CrossfieldError::Linalg(crate::linalg::LinalgError::PatternMismatch {
+                expected: self.symbolic.row_idx().len(),
+                got: values.len(),
+            }));
         }
         Ok(SparseMatrix::new(self.symbolic.clone(), values))
     }
@@ -298,18 +277,11 @@ mod tests {
         let weak: Vec<bool> = (0..topo.n_edges()).map(|e| e % 5 == 0).collect();
         let sys = NewtonSystem::new(&topo, &disc, &fixed).unwrap();
         let mut rng = StdRng::seed_from_u64(11);
-        let f: Vec<C64> = (0..topo.n_edges())
-            .map(|_| C64::new(rng.random_range(-1.0..1.0), rng.random_range(-1.0..1.0)))
-            .collect();
-        let params = EnergyParams {
-            inv_eps2: 1.0 / 0.3f64.powi(2),
-            weak_coef: 2.0,
-            weak_edges: &weak,
-        };
+        let f: Vec<C64> =
+            (0..topo.n_edges()).map(|_| C64::new(rng.random_range(-1.0..1.0), rng.random_range(-1.0..1.0))).collect();
+        let params = EnergyParams { inv_eps2: 1.0 / 0.3f64.powi(2), weak_coef: 2.0, weak_edges: &weak };
         let asm = sys.assemble(&topo, &disc, &f, &params, HessianKind::Exact);
-        assert!(
-            (asm.energy - total_energy(&disc, &topo, &f, &params)).abs() < 1e-10 * asm.energy.abs()
-        );
+        assert!((asm.energy - total_energy(&disc, &topo, &f, &params)).abs() < 1e-10 * asm.energy.abs());
         let h_full = sys.matrix(asm.hess_values.clone()).unwrap().to_dense();
         let perturbed = |i: usize, s: f64| {
             let mut g = f.clone();
@@ -324,19 +296,10 @@ mod tests {
         let h = 1e-6;
         for i in (0..sys.n_dofs()).step_by(7) {
             let (fp, fm) = (perturbed(i, h), perturbed(i, -h));
-            let fd = (total_energy(&disc, &topo, &fp, &params)
-                - total_energy(&disc, &topo, &fm, &params))
-                / (2.0 * h);
-            assert!(
-                (fd - asm.grad[i]).abs() < 1e-5 * (1.0 + fd.abs()),
-                "grad {i}"
-            );
-            let gp = sys
-                .assemble(&topo, &disc, &fp, &params, HessianKind::Exact)
-                .grad;
-            let gm = sys
-                .assemble(&topo, &disc, &fm, &params, HessianKind::Exact)
-                .grad;
+            let fd = (total_energy(&disc, &topo, &fp, &params) - total_energy(&disc, &topo, &fm, &params)) / (2.0 * h);
+            assert!((fd - asm.grad[i]).abs() < 1e-5 * (1.0 + fd.abs()), "grad {i}");
+            let gp = sys.assemble(&topo, &disc, &fp, &params, HessianKind::Exact).grad;
+            let gm = sys.assemble(&topo, &disc, &fm, &params, HessianKind::Exact).grad;
             for j in 0..sys.n_dofs() {
                 let fdh = (gp[j] - gm[j]) / (2.0 * h);
                 let (r, c) = if j >= i { (j, i) } else { (i, j) };

@@ -59,13 +59,7 @@ impl TriangleGrid {
             cell *= 1.5;
         }
         let dims = [0, 1, 2].map(|k| (ext[k] / cell).floor() as usize + 1);
-        let mut grid = Self {
-            origin: lo,
-            cell,
-            dims,
-            start: Vec::new(),
-            items: Vec::new(),
-        };
+        let mut grid = Self { origin: lo, cell, dims, start: Vec::new(), items: Vec::new() };
         grid.fill(mesh);
         grid
     }
@@ -95,9 +89,7 @@ impl TriangleGrid {
     fn fill(&mut self, mesh: &TriMesh) {
         let n_cells = self.dims.iter().product::<usize>();
         let mut count = vec![0u32; n_cells + 1];
-        let boxes: Vec<_> = (0..mesh.n_faces())
-            .map(|f| self.box_cells(mesh, f))
-            .collect();
+        let boxes: Vec<_> = (0..mesh.n_faces()).map(|f| self.box_cells(mesh, f)).collect();
         let each = |(lo, hi): &([usize; 3], [usize; 3]), visit: &mut dyn FnMut([usize; 3])| {
             for z in lo[2]..=hi[2] {
                 for y in lo[1]..=hi[1] {
@@ -304,15 +296,8 @@ fn vertex_field(mesh: &TriMesh, topo: &Topology, disc: &Discretization, f: &[C64
             count[v] += 1;
         }
     }
-    let value_per_vertex = sum
-        .iter()
-        .zip(&count)
-        .map(|(s, &c)| if c > 0 { s / c as f64 } else { *s })
-        .collect();
-    VertexField {
-        value_per_vertex,
-        to_vertex_per_corner,
-    }
+    let value_per_vertex = sum.iter().zip(&count).map(|(s, &c)| if c > 0 { s / c as f64 } else { *s }).collect();
+    VertexField { value_per_vertex, to_vertex_per_corner }
 }
 
 /// The field of `coarse` (values `coarse_f` per coarse edge) at the edges of
@@ -328,9 +313,7 @@ pub fn transfer_to_fine(
     let n = coarse_disc.symmetry;
     let p1 = vertex_field(coarse_mesh, coarse_topo, coarse_disc, coarse_f);
     let grid = TriangleGrid::new(coarse_mesh);
-    let normals: Vec<Vec3> = (0..coarse_mesh.n_faces())
-        .map(|f| coarse_mesh.face_normal(FaceId::new(f)))
-        .collect();
+    let normals: Vec<Vec3> = (0..coarse_mesh.n_faces()).map(|f| coarse_mesh.face_normal(FaceId::new(f))).collect();
     (0..fine_topo.n_edges())
         .into_par_iter()
         .map(|e| {
@@ -338,17 +321,12 @@ pub fn transfer_to_fine(
             let [a, b] = fine_topo.edges[e.idx()];
             let mid = (fine_mesh.positions[a.idx()] + fine_mesh.positions[b.idx()]) * 0.5;
             let normal = edge_normal(fine_mesh, fine_topo, e);
-            let Some((t, bary)) = closest_triangle(&grid, coarse_mesh, &normals, &mid, &normal)
-            else {
+            let Some((t, bary)) = closest_triangle(&grid, coarse_mesh, &normals, &mid, &normal) else {
                 return C64::new(1.0, 0.0);
             };
             let tri = &coarse_mesh.triangles[t];
             let w: C64 = (0..3)
-                .map(|i| {
-                    p1.to_vertex_per_corner[t][i].conj()
-                        * p1.value_per_vertex[tri[i].idx()]
-                        * bary[i]
-                })
+                .map(|i| p1.to_vertex_per_corner[t][i].conj() * p1.value_per_vertex[tri[i].idx()] * bary[i])
                 .sum();
             let (r, nrm) = face_frame(coarse_mesh, FaceId::new(t));
             let th = w.arg() / n as f64;
@@ -356,11 +334,7 @@ pub fn transfer_to_fine(
             let ed = edge_direction(fine_mesh, fine_topo, e);
             let z = C64::new(u.dot(&ed), u.dot(&normal.cross(&ed)));
             let m = z.norm();
-            if m > 0.0 {
-                complex_pow(z / m, n) * w.norm()
-            } else {
-                C64::new(w.norm(), 0.0)
-            }
+            if m > 0.0 { complex_pow(z / m, n) * w.norm() } else { C64::new(w.norm(), 0.0) }
         })
         .collect()
 }
@@ -386,21 +360,13 @@ mod tests {
 
     #[test]
     fn closest_point_covers_inside_edges_and_corners() {
-        let (a, b, c) = (
-            Vec3::new(0.0, 0.0, 0.0),
-            Vec3::new(1.0, 0.0, 0.0),
-            Vec3::new(0.0, 1.0, 0.0),
-        );
+        let (a, b, c) = (Vec3::new(0.0, 0.0, 0.0), Vec3::new(1.0, 0.0, 0.0), Vec3::new(0.0, 1.0, 0.0));
         let (l, d2) = closest_point_barycentric(&Vec3::new(0.25, 0.25, 1.0), &a, &b, &c);
-        assert!(
-            (l[0] - 0.5).abs() < 1e-12 && (l[1] - 0.25).abs() < 1e-12 && (d2 - 1.0).abs() < 1e-12
-        );
+        assert!((l[0] - 0.5).abs() < 1e-12 && (l[1] - 0.25).abs() < 1e-12 && (d2 - 1.0).abs() < 1e-12);
         let (l, _) = closest_point_barycentric(&Vec3::new(2.0, -1.0, 0.0), &a, &b, &c);
         assert_eq!(l, [0.0, 1.0, 0.0]);
         let (l, d2) = closest_point_barycentric(&Vec3::new(1.0, 1.0, 0.0), &a, &b, &c);
-        assert!(
-            (l[1] - 0.5).abs() < 1e-12 && (l[2] - 0.5).abs() < 1e-12 && (d2 - 0.5).abs() < 1e-12
-        );
+        assert!((l[1] - 0.5).abs() < 1e-12 && (l[2] - 0.5).abs() < 1e-12 && (d2 - 0.5).abs() < 1e-12);
     }
 
     #[test]
@@ -415,11 +381,7 @@ mod tests {
             let fc = constant_field(&coarse, &ct, &d, n);
             let got = transfer_to_fine(&coarse, &ct, &disc, &fc, &fine, &ft);
             let want = constant_field(&fine, &ft, &d, n);
-            let err = got
-                .iter()
-                .zip(&want)
-                .map(|(a, b)| (a - b).norm())
-                .fold(0.0, f64::max);
+            let err = got.iter().zip(&want).map(|(a, b)| (a - b).norm()).fold(0.0, f64::max);
             assert!(err < 1e-9, "N = {n}: {err}");
         }
     }

@@ -46,14 +46,8 @@ pub const P2_MASS_OVER_AREA: [[f64; 6]; 6] = {
 /// Coefficients `c[m][k]`: the value of a CR field at P2 node `m` is
 /// `Σₖ c[m][k] Fₖ` (corner `i`: +1 on its two edges, −1 on the opposite one;
 /// midpoint `3 + k`: the CR value of edge `k`).
-pub const P2_NODE_FROM_CR: [[f64; 3]; 6] = [
-    [1.0, -1.0, 1.0],
-    [1.0, 1.0, -1.0],
-    [-1.0, 1.0, 1.0],
-    [1.0, 0.0, 0.0],
-    [0.0, 1.0, 0.0],
-    [0.0, 0.0, 1.0],
-];
+pub const P2_NODE_FROM_CR: [[f64; 3]; 6] =
+    [[1.0, -1.0, 1.0], [1.0, 1.0, -1.0], [-1.0, 1.0, 1.0], [1.0, 0.0, 0.0], [0.0, 1.0, 0.0], [0.0, 0.0, 1.0]];
 
 /// CR stiffness matrix `Sⱼₖ = ∫ ∇ωⱼ·∇ωₖ dA` of the triangle `p`, computed
 /// with cotangents: off-diagonal `−2 cot θ` (θ the angle between the two
@@ -87,11 +81,7 @@ pub fn cr_stiffness(p: &[Vec3; 3]) -> [[f64; 3]; 3] {
 /// CR shape function values `[ω₀, ω₁, ω₂]` at barycentric coordinates `λ`.
 #[inline]
 pub fn cr_shape_values(lambda: [f64; 3]) -> [f64; 3] {
-    [
-        1.0 - 2.0 * lambda[2],
-        1.0 - 2.0 * lambda[0],
-        1.0 - 2.0 * lambda[1],
-    ]
+    [1.0 - 2.0 * lambda[2], 1.0 - 2.0 * lambda[0], 1.0 - 2.0 * lambda[1]]
 }
 
 #[cfg(test)]
@@ -99,11 +89,7 @@ mod tests {
     use super::*;
 
     fn tri() -> [Vec3; 3] {
-        [
-            Vec3::new(0.1, -0.2, 0.0),
-            Vec3::new(1.3, 0.1, 0.2),
-            Vec3::new(0.4, 0.9, -0.1),
-        ]
+        [Vec3::new(0.1, -0.2, 0.0), Vec3::new(1.3, 0.1, 0.2), Vec3::new(0.4, 0.9, -0.1)]
     }
 
     /// Barycentric → point.
@@ -163,18 +149,12 @@ mod tests {
         let grad = |k: usize| {
             let f = |x: Vec3| cr_shape_values(bary(&p, &x))[k];
             let h = 1e-6;
-            (f(c + e1 * h) - f(c - e1 * h)) / (2.0 * h) * e1
-                + (f(c + e2 * h) - f(c - e2 * h)) / (2.0 * h) * e2
+            (f(c + e1 * h) - f(c - e1 * h)) / (2.0 * h) * e1 + (f(c + e2 * h) - f(c - e2 * h)) / (2.0 * h) * e2
         };
         for j in 0..3 {
             for k in 0..3 {
                 let exact = grad(j).dot(&grad(k)) * area;
-                assert!(
-                    (s[j][k] - exact).abs() < 1e-6,
-                    "{j}{k}: {} {}",
-                    s[j][k],
-                    exact
-                );
+                assert!((s[j][k] - exact).abs() < 1e-6, "{j}{k}: {} {}", s[j][k], exact);
             }
         }
         assert_eq!(cr_stiffness(&[Vec3::zeros(); 3]), [[0.0; 3]; 3]);
@@ -184,9 +164,7 @@ mod tests {
     fn p2_mass_integrates_quartics_exactly() {
         // ∫ λ^a λ^b λ^c dA = 2A a! b! c! / (a+b+c+2)!
         let fact = |n: usize| (1..=n).product::<usize>() as f64;
-        let moment = |e: [usize; 3]| {
-            2.0 * fact(e[0]) * fact(e[1]) * fact(e[2]) / fact(e[0] + e[1] + e[2] + 2)
-        };
+        let moment = |e: [usize; 3]| 2.0 * fact(e[0]) * fact(e[1]) * fact(e[2]) / fact(e[0] + e[1] + e[2] + 2);
         // Quadratics λ_i λ_j: P2 nodal values, then pᵀ M q vs the exact moment.
         let nodes: Vec<[f64; 3]> = (0..6)
             .map(|m| {

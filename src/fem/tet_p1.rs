@@ -143,8 +143,13 @@ impl TetP1Operators {
             let d = self.col_ptr[j];
             vals[d] += mass_scale * self.lumped_mass[j] + extra_diagonal.map_or(0.0, |e| e[j]);
         }
-        let symbolic =
-            SymbolicSparseColMat::new_checked(self.n_vertices, self.n_vertices, self.col_ptr.clone(), None, self.row_idx.clone());
+        let symbolic = SymbolicSparseColMat::new_checked(
+            self.n_vertices,
+            self.n_vertices,
+            self.col_ptr.clone(),
+            None,
+            self.row_idx.clone(),
+        );
         SparseMatrix::new(symbolic, vals)
     }
 
@@ -192,7 +197,8 @@ mod tests {
     /// The unit cube split into 6 tets around the diagonal (0,0,0)–(1,1,1),
     /// scaled by `s`.
     fn cube6(s: f64) -> TetMesh {
-        let positions = (0..8).map(|i| Vec3::new((i & 1) as f64, ((i >> 1) & 1) as f64, ((i >> 2) & 1) as f64) * s).collect();
+        let positions =
+            (0..8).map(|i| Vec3::new((i & 1) as f64, ((i >> 1) & 1) as f64, ((i >> 2) & 1) as f64) * s).collect();
         let raw = [[0, 1, 3, 7], [0, 3, 2, 7], [0, 2, 6, 7], [0, 6, 4, 7], [0, 4, 5, 7], [0, 5, 1, 7]];
         let mut m = TetMesh { positions, tets: raw.iter().map(|t| t.map(VertexId)).collect() };
         m.orient_positive();

@@ -80,7 +80,13 @@ impl TriangleBvh {
                 continue;
             }
             let ext = chi - clo;
-            let axis = if ext.x >= ext.y && ext.x >= ext.z { 0 } else if ext.y >= ext.z { 1 } else { 2 };
+            let axis = if ext.x >= ext.y && ext.x >= ext.z {
+                0
+            } else if ext.y >= ext.z {
+                1
+            } else {
+                2
+            };
             let mid = (s + e) / 2;
             order[s..e].select_nth_unstable_by(mid - s, |&a, &b| {
                 centroids[a as usize][axis].total_cmp(&centroids[b as usize][axis])
@@ -248,7 +254,13 @@ fn segment_triangle(p: &Vec3, d: &Vec3, tri: &[Vec3; 3]) -> Option<(f64, bool)> 
 fn box_distance2(x: &Vec3, lo: &Vec3, hi: &Vec3) -> f64 {
     let mut d2 = 0.0;
     for a in 0..3 {
-        let v = if x[a] < lo[a] { lo[a] - x[a] } else if x[a] > hi[a] { x[a] - hi[a] } else { 0.0 };
+        let v = if x[a] < lo[a] {
+            lo[a] - x[a]
+        } else if x[a] > hi[a] {
+            x[a] - hi[a]
+        } else {
+            0.0
+        };
         d2 += v * v;
     }
     d2

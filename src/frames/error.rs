@@ -20,7 +20,14 @@ fn describe_loops(loops: &[OpenLoop]) -> String {
     let mut s = String::new();
     for (i, l) in loops.iter().take(5).enumerate() {
         let vs: Vec<String> = l.first_vertices.iter().map(|v| v.to_string()).collect();
-        s.push_str(&format!("{}loop {i}: {} edges, length {:.4e}, through vertices {}{}", if i > 0 { "; " } else { "" }, l.n_edges, l.length, vs.join(", "), if l.n_edges > l.first_vertices.len() { ", …" } else { "" }));
+        s.push_str(&format!(
+            "{}loop {i}: {} edges, length {:.4e}, through vertices {}{}",
+            if i > 0 { "; " } else { "" },
+            l.n_edges,
+            l.length,
+            vs.join(", "),
+            if l.n_edges > l.first_vertices.len() { ", …" } else { "" }
+        ));
     }
     if loops.len() > 5 {
         s.push_str(&format!("; and {} more", loops.len() - 5));
@@ -30,11 +37,7 @@ fn describe_loops(loops: &[OpenLoop]) -> String {
 
 /// The note on non-manifold edges of an open surface (empty when none).
 fn describe_nonmanifold(n: usize) -> String {
-    if n == 0 {
-        String::new()
-    } else {
-        format!(" and is non-manifold: {n} edge(s) shared by three or more triangles")
-    }
+    if n == 0 { String::new() } else { format!(" and is non-manifold: {n} edge(s) shared by three or more triangles") }
 }
 
 /// Why the frame field could not be computed.
@@ -65,7 +68,9 @@ pub enum FramesError {
     InvalidVolume(#[from] MeshError),
     /// The tetrahedralization found no interior: the volume is thinner
     /// than the lattice spacing.
-    #[error("no tetrahedron fits inside the surface at target size {spacing:.4e} (enclosed volume {volume:.4e}); use a smaller target_size")]
+    #[error(
+        "no tetrahedron fits inside the surface at target size {spacing:.4e} (enclosed volume {volume:.4e}); use a smaller target_size"
+    )]
     NoInterior {
         /// Lattice spacing used.
         spacing: f64,
@@ -73,7 +78,9 @@ pub enum FramesError {
         volume: f64,
     },
     /// The requested target size would give too many tetrahedra.
-    #[error("target_size {target_size:.4e} would give about {estimated_tets} tetrahedra, above max_tets = {max_tets}; raise target_size or max_tets")]
+    #[error(
+        "target_size {target_size:.4e} would give about {estimated_tets} tetrahedra, above max_tets = {max_tets}; raise target_size or max_tets"
+    )]
     TooManyTets {
         /// The requested size.
         target_size: f64,

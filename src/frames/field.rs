@@ -37,9 +37,8 @@ use super::singular::{SingularEdge, SingularReport, singular_edges, tet_frames};
 use super::stuffing::NO_TRIANGLE;
 use super::su2::C64;
 use super::volume::{
-    VolumeReport, boundary_vertex_normals, boundary_vertices_of_faces, check_closed, dihedral_angle_range, lattice_spacing,
-    tet_boundary_faces,
-    tetrahedralize_enclosed_volume_cancellable,
+    VolumeReport, boundary_vertex_normals, boundary_vertices_of_faces, check_closed, dihedral_angle_range,
+    lattice_spacing, tet_boundary_faces, tetrahedralize_enclosed_volume_cancellable,
 };
 use crate::fem::tet_p1::tet_p1_operators;
 use crate::geom::Vec3;
@@ -197,7 +196,10 @@ impl FramesOptions {
             return bad("pcg_tolerance", format!("must be in (0, 1), got {}", self.pcg_tolerance));
         }
         if !(self.singular_axis_tolerance_deg > 0.0 && self.singular_axis_tolerance_deg < 90.0) {
-            return bad("singular_axis_tolerance_deg", format!("must be in (0, 90), got {}", self.singular_axis_tolerance_deg));
+            return bad(
+                "singular_axis_tolerance_deg",
+                format!("must be in (0, 90), got {}", self.singular_axis_tolerance_deg),
+            );
         }
         Ok(())
     }
@@ -308,7 +310,12 @@ pub struct FrameField {
 /// [`FramesError::NoInterior`], [`FramesError::TooManyTets`],
 /// [`FramesError::InvalidOption`], [`FramesError::Linalg`],
 /// [`FramesError::Cancelled`].
-pub fn compute_frame_field(surface: &TriMesh, volume: Option<&TetMesh>, opts: &FramesOptions, progress: &Progress) -> Result<FrameField, FramesError> {
+pub fn compute_frame_field(
+    surface: &TriMesh,
+    volume: Option<&TetMesh>,
+    opts: &FramesOptions,
+    progress: &Progress,
+) -> Result<FrameField, FramesError> {
     opts.validate()?;
     let t_total = Instant::now();
     let mut seconds = FramesTimings::default();
@@ -340,8 +347,13 @@ pub fn compute_frame_field(surface: &TriMesh, volume: Option<&TetMesh>, opts: &F
             surface.validate().map_err(FramesError::InvalidSurface)?;
             check_closed(surface)?;
             let (h, capped) = lattice_spacing(surface, opts.target_size, opts.max_tets)?;
-            let (stuffed, mut rep) =
-                tetrahedralize_enclosed_volume_cancellable(surface, h, opts.alpha_long, opts.alpha_short, &vol_progress)?;
+            let (stuffed, mut rep) = tetrahedralize_enclosed_volume_cancellable(
+                surface,
+                h,
+                opts.alpha_long,
+                opts.alpha_short,
+                &vol_progress,
+            )?;
             rep.spacing_capped = capped;
             (stuffed.mesh, rep, Some(stuffed.surface_triangle_per_vertex))
         }
@@ -355,7 +367,8 @@ pub fn compute_frame_field(surface: &TriMesh, volume: Option<&TetMesh>, opts: &F
     let faces = tet_boundary_faces(&mesh);
     progress.check()?;
     let boundary = boundary_vertices_of_faces(mesh.n_vertices(), &faces);
-    let constraints = boundary_constraints(&mesh, &faces, &boundary, surface, surface_triangle.as_deref(), opts.feature_angle_deg);
+    let constraints =
+        boundary_constraints(&mesh, &faces, &boundary, surface, surface_triangle.as_deref(), opts.feature_angle_deg);
     progress.check()?;
     let initial = best_fit_frame(&constraints);
     seconds.constraints = t.elapsed().as_secs_f64();
@@ -369,7 +382,12 @@ pub fn compute_frame_field(surface: &TriMesh, volume: Option<&TetMesh>, opts: &F
     let diag = mesh_diagonal(&mesh);
     let h_mean = mean_tet_edge_length(&mesh);
     let params = MboParams {
-        tau_initial: if opts.harmonic_start { opts.tau_initial * h_mean * h_mean } else { opts.tau_initial * diag * diag }.max(opts.tau_final * h_mean * h_mean),
+        tau_initial: if opts.harmonic_start {
+            opts.tau_initial * h_mean * h_mean
+        } else {
+            opts.tau_initial * diag * diag
+        }
+        .max(opts.tau_final * h_mean * h_mean),
         tau_final: opts.tau_final * h_mean * h_mean,
         tau_shrink: opts.tau_shrink,
         max_steps_per_level: opts.max_steps_per_level,
@@ -398,13 +416,19 @@ pub fn compute_frame_field(surface: &TriMesh, volume: Option<&TetMesh>, opts: &F
     let quats: Vec<Quat> = field.rotation_per_vertex.par_iter().map(Quat::from_matrix).collect();
     let invariants: Vec<[C64; 3]> = quats.par_iter().map(frame_invariants).collect();
     let residual_max = invariants.par_iter().map(model_surface_relative_residual).reduce(|| 0.0, f64::max);
-    let axes: Vec<[Vec3; 3]> = field.rotation_per_vertex.iter().map(|r| [r.column(0).into_owned(), r.column(1).into_owned(), r.column(2).into_owned()]).collect();
+    let axes: Vec<[Vec3; 3]> = field
+        .rotation_per_vertex
+        .iter()
+        .map(|r| [r.column(0).into_owned(), r.column(1).into_owned(), r.column(2).into_owned()])
+        .collect();
     let alignment = constraints
         .par_iter()
         .zip(&axes)
         .map(|(c, a)| match c {
             // atan2 of |a × n| and |a · n|: accurate for tiny angles.
-            VertexConstraint::Normal(n) => a.iter().map(|x| x.cross(n).norm().atan2(x.dot(n).abs())).fold(f64::INFINITY, f64::min).to_degrees(),
+            VertexConstraint::Normal(n) => {
+                a.iter().map(|x| x.cross(n).norm().atan2(x.dot(n).abs())).fold(f64::INFINITY, f64::min).to_degrees()
+            }
             _ => 0.0,
         })
         .reduce(|| 0.0, f64::max);
@@ -416,7 +440,8 @@ pub fn compute_frame_field(surface: &TriMesh, volume: Option<&TetMesh>, opts: &F
     let frames_t = tet_frames(&mesh, &field.sh9_per_vertex, &field.rotation_per_vertex, progress)?;
     seconds.tet_frames = t.elapsed().as_secs_f64();
     let t = Instant::now();
-    let (singular, singular_report) = singular_edges(&mesh, &frames_t, &boundary, opts.singular_axis_tolerance_deg, progress)?;
+    let (singular, singular_report) =
+        singular_edges(&mesh, &frames_t, &boundary, opts.singular_axis_tolerance_deg, progress)?;
     let quaternion_per_tet = frames_t.par_iter().map(|r| Quat::from_matrix(r).0).collect();
     seconds.singular = t.elapsed().as_secs_f64();
     progress.set(1.0);

@@ -105,12 +105,11 @@ pub(crate) fn pow4(z: C64) -> C64 {
 #[cfg(test)]
 mod tests {
     use super::super::groups::{binary_octahedral_group, binary_tetrahedral_group, vierer_group};
+    use super::super::quaternion::tests::random_unit;
     use super::super::su2::su2_from_quaternion;
     use super::*;
-    use super::super::quaternion::tests::random_unit;
     use rand::rngs::StdRng;
     use rand::{Rng, SeedableRng};
-
 
     fn rel_close(a: &[C64; 3], b: &[C64; 3], tol: f64) -> bool {
         a.iter().zip(b).all(|(x, y)| (x - y).norm() <= tol * (x.norm().max(y.norm()).max(1e-300)))
@@ -180,7 +179,10 @@ mod tests {
             // g2 = (f̃0³ + f̃1³)/2 (the ½ is missing in the printed (4.21)).
             assert!(((t0 * t0 * t0 + t1 * t1 * t1) * 0.5 - g[2]).norm() <= 1e-13 * scale.powi(6));
             // f̃0³ − f̃1³ = 12√3 i g0², the identity behind §4's cube root.
-            assert!((t0 * t0 * t0 - t1 * t1 * t1 - C64::new(0.0, 6.0 * TWO_SQRT3) * g[0] * g[0]).norm() <= 1e-12 * scale.powi(6));
+            assert!(
+                (t0 * t0 * t0 - t1 * t1 * t1 - C64::new(0.0, 6.0 * TWO_SQRT3) * g[0] * g[0]).norm()
+                    <= 1e-12 * scale.powi(6)
+            );
             // (uv)² = (f̃0 − f̃1)/(4√3 i).
             assert!(((t0 - t1) / C64::new(0.0, 2.0 * TWO_SQRT3) - f[0]).norm() <= 1e-13 * scale.powi(2));
         }

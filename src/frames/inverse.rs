@@ -245,19 +245,21 @@ fn polish(start: &Su2, target: &[C64; 3], steps: usize) -> Su2 {
 mod tests {
     use super::super::groups::binary_octahedral_group;
     use super::super::invariants::{frame_invariants, model_surface_relative_residual};
+    use super::super::quaternion::tests::random_unit;
     use super::super::su2::frame_su2;
     use super::*;
-    use super::super::quaternion::tests::random_unit;
     use rand::rngs::StdRng;
     use rand::{Rng, SeedableRng};
 
-
     /// Distance between frame quaternions up to the groupset `±q O`.
     fn distance_mod_o(a: &Quat, b: &Quat) -> f64 {
-        binary_octahedral_group().iter().map(|o| {
-            let bo = b.mul(o);
-            (0..4).map(|i| (a.0[i] - bo.0[i]).powi(2)).sum::<f64>().sqrt()
-        }).fold(f64::INFINITY, f64::min)
+        binary_octahedral_group()
+            .iter()
+            .map(|o| {
+                let bo = b.mul(o);
+                (0..4).map(|i| (a.0[i] - bo.0[i]).powi(2)).sum::<f64>().sqrt()
+            })
+            .fold(f64::INFINITY, f64::min)
     }
 
     #[test]
@@ -365,7 +367,11 @@ mod tests {
                     !(loose(&hp, &h) || loose(&hp, &flipped))
                 })
                 .collect();
-            assert!(bad.is_empty(), "{pair:?}: h {h:?}, bad branches {bad:?}, e.g. {:?}", bad.first().map(|&i| (branches[i], octahedral_forms(&branches[i]))));
+            assert!(
+                bad.is_empty(),
+                "{pair:?}: h {h:?}, bad branches {bad:?}, e.g. {:?}",
+                bad.first().map(|&i| (branches[i], octahedral_forms(&branches[i])))
+            );
             let set = groupset_from_invariants(&h);
             assert_eq!(set.len(), 48, "{pair:?}");
             // After the (4.22) correction and the polish: exact to round-off.

@@ -41,11 +41,11 @@
 //! `τ` costs a numeric refactorization only (or a new set of values for CG).
 
 use super::error::FramesError;
+use super::pcg::{SymmetricCsr, pcg9};
 use super::quaternion::Mat3;
 use super::sh4::{Projection, dot9, nearest_frame_to_tolerance, nearest_normal_aligned_frame, sh9_from_rotation};
 use crate::fem::tet_p1::TetP1Operators;
 use crate::geom::Vec3;
-use super::pcg::{SymmetricCsr, pcg9};
 use crate::linalg::CholeskySolver;
 use crate::progress::Progress;
 use rayon::prelude::*;
@@ -167,7 +167,9 @@ pub fn smooth_octahedral_field(
     let t0 = Instant::now();
     let start: Vec<Projection> = (0..n)
         .into_par_iter()
-        .map(|v| project_vertex(&sh9_from_rotation(&initial[v]), &constraints[v], &initial[v], params.projection_accept))
+        .map(|v| {
+            project_vertex(&sh9_from_rotation(&initial[v]), &constraints[v], &initial[v], params.projection_accept)
+        })
         .collect();
     let mut state = FieldState {
         rotation: start.iter().map(|p| p.rotation).collect(),
@@ -180,7 +182,10 @@ pub fn smooth_octahedral_field(
     // Dirichlet data on constrained vertices by a penalty on the diagonal
     // (same pattern as M + τK, so one symbolic analysis serves all).
     let kmax = (0..n).map(|j| ops.stiffness_lower[ops.diagonal_slot(j)]).fold(0.0, f64::max);
-    let penalty: Vec<f64> = constraints.iter().map(|c| if matches!(c, VertexConstraint::Free) { 0.0 } else { 1e8 * kmax.max(1e-300) }).collect();
+    let penalty: Vec<f64> = constraints
+        .iter()
+        .map(|c| if matches!(c, VertexConstraint::Free) { 0.0 } else { 1e8 * kmax.max(1e-300) })
+        .collect();
     let has_constraints = penalty.iter().any(|p| *p > 0.0);
     let has_free = penalty.contains(&0.0);
     // Vertices in no tet (possible in an uploaded mesh) have empty rows:
@@ -219,7 +224,13 @@ pub fn smooth_octahedral_field(
         let a = ops.combination(
             1.0,
             tau,
-            if dirichlet { Some(&penalty_or_isolated) } else if any_isolated { Some(&isolated) } else { None },
+            if dirichlet {
+                Some(&penalty_or_isolated)
+            } else if any_isolated {
+                Some(&isolated)
+            } else {
+                None
+            },
         );
         diffuser.set_matrix(ops, &a, &mut timer)?;
         n_factorizations += 1;
@@ -266,7 +277,10 @@ pub fn smooth_octahedral_field(
 
 /// Largest change of a vertex 9-vector between two fields (by component).
 fn max_vertex_change(a: &[Vec<f64>], b: &[Vec<f64>]) -> f64 {
-    (0..a[0].len()).into_par_iter().map(|v| (0..9).map(|c| (a[c][v] - b[c][v]).powi(2)).sum::<f64>().sqrt()).reduce(|| 0.0, f64::max)
+    (0..a[0].len())
+        .into_par_iter()
+        .map(|v| (0..9).map(|c| (a[c][v] - b[c][v]).powi(2)).sum::<f64>().sqrt())
+        .reduce(|| 0.0, f64::max)
 }
 
 #[derive(Default)]
@@ -303,7 +317,12 @@ impl Diffuser {
 
     /// Make `a` the current matrix: factor it (reusing the symbolic
     /// analysis) or load its values.
-    fn set_matrix(&mut self, ops: &TetP1Operators, a: &crate::linalg::SparseMatrix, timer: &mut Timers) -> Result<(), FramesError> {
+    fn set_matrix(
+        &mut self,
+        ops: &TetP1Operators,
+        a: &crate::linalg::SparseMatrix,
+        timer: &mut Timers,
+    ) -> Result<(), FramesError> {
         let t = Instant::now();
         match self {
             Diffuser::Direct(solver) => match solver.as_mut() {

@@ -76,7 +76,12 @@ mod tests {
     fn norm_from_invariants_recovers_the_quaternion_norm() {
         let mut rng = StdRng::seed_from_u64(31);
         for _ in 0..500 {
-            let q = Quat::new(rng.random_range(-1.0..1.0), rng.random_range(-1.0..1.0), rng.random_range(-1.0..1.0), rng.random_range(-1.0..1.0));
+            let q = Quat::new(
+                rng.random_range(-1.0..1.0),
+                rng.random_range(-1.0..1.0),
+                rng.random_range(-1.0..1.0),
+                rng.random_range(-1.0..1.0),
+            );
             let scale: f64 = rng.random_range(0.3..2.0);
             let q = Quat(q.normalized().0.map(|c| c * scale));
             let n2 = su2_norm_squared_from_invariants(&frame_invariants(&q));
@@ -90,7 +95,8 @@ mod tests {
         let s = su2_from_quaternion(&q);
         let h = octahedral_forms(&s);
         let (u, v) = (s.u, s.v);
-        let roots = [vierer_forms(&s)[0], -(u * u + v * v) * (u * u + v * v) * 0.25, (u * u - v * v) * (u * u - v * v) * 0.25];
+        let roots =
+            [vierer_forms(&s)[0], -(u * u + v * v) * (u * u + v * v) * 0.25, (u * u - v * v) * (u * u - v * v) * 0.25];
         for x in roots {
             assert!((x * x * x * 16.0 - h[0] * x + h[1]).norm() < 1e-14);
         }

@@ -20,8 +20,8 @@
 //! over fixed chunks in a fixed order, so results do not depend on the
 //! number of threads.
 
-use rayon::prelude::*;
 use crate::progress::{Cancelled, Progress};
+use rayon::prelude::*;
 
 /// Rows per parallel chunk (fixed, for deterministic reductions).
 const CHUNK: usize = 4096;
@@ -202,12 +202,14 @@ pub fn pcg9(
         a.apply9(&p, &mut ap);
         let pap = dot9(&p, &ap);
         let alpha: [f64; 9] = std::array::from_fn(|c| if active[c] && pap[c] > 0.0 { rz[c] / pap[c] } else { 0.0 });
-        x.par_iter_mut().zip(r.par_iter_mut()).zip(p.par_iter().zip(ap.par_iter())).for_each(|((xi, ri), (pi, api))| {
-            for c in 0..9 {
-                xi[c] += alpha[c] * pi[c];
-                ri[c] -= alpha[c] * api[c];
-            }
-        });
+        x.par_iter_mut().zip(r.par_iter_mut()).zip(p.par_iter().zip(ap.par_iter())).for_each(
+            |((xi, ri), (pi, api))| {
+                for c in 0..9 {
+                    xi[c] += alpha[c] * pi[c];
+                    ri[c] -= alpha[c] * api[c];
+                }
+            },
+        );
         rnorm = dot9(&r, &r).map(f64::sqrt);
         for c in 0..9 {
             if rnorm[c] <= tol * bnorm[c] {

@@ -205,7 +205,12 @@ pub(crate) mod tests {
     /// shared by the frame tests.
     pub(crate) fn random_unit(rng: &mut StdRng) -> Quat {
         loop {
-            let q = Quat::new(rng.random_range(-1.0..1.0), rng.random_range(-1.0..1.0), rng.random_range(-1.0..1.0), rng.random_range(-1.0..1.0));
+            let q = Quat::new(
+                rng.random_range(-1.0..1.0),
+                rng.random_range(-1.0..1.0),
+                rng.random_range(-1.0..1.0),
+                rng.random_range(-1.0..1.0),
+            );
             let n = q.norm();
             if n > 0.1 && n < 1.0 {
                 return q.normalized();

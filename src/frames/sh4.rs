@@ -46,7 +46,8 @@ use super::quaternion::{Mat3, Quat, reorthonormalize, rotation_from_vector};
 use crate::geom::Vec3;
 
 /// The 9-vector of the Cartesian frame `x⁴ + y⁴ + z⁴` (unit norm).
-pub const REFERENCE_SH9: [f64; 9] = [0.0, 0.0, 0.0, 0.0, 0.763_762_615_825_973_4, 0.0, 0.0, 0.0, 0.645_497_224_367_902_8];
+pub const REFERENCE_SH9: [f64; 9] =
+    [0.0, 0.0, 0.0, 0.0, 0.763_762_615_825_973_4, 0.0, 0.0, 0.0, 0.645_497_224_367_902_8];
 
 const PI: f64 = std::f64::consts::PI;
 
@@ -120,9 +121,15 @@ pub fn sh4_basis_gradient(p: &Vec3) -> [[f64; 3]; 9] {
         s(n.c1, [3.0 * x2 * y - y2 * y, x2 * x - 3.0 * x * y2, 0.0]),
         s(n.c2, [6.0 * x * y * z, 3.0 * x2 * z - 3.0 * y2 * z, 3.0 * x2 * y - y2 * y]),
         s(n.c3, [6.0 * y * z2 - 3.0 * x2 * y - y2 * y, 6.0 * x * z2 - x2 * x - 3.0 * x * y2, 12.0 * x * y * z]),
-        s(n.c4, [-6.0 * x * y * z, 4.0 * z2 * z - 3.0 * x2 * z - 9.0 * y2 * z, 12.0 * y * z2 - 3.0 * x2 * y - 3.0 * y2 * y]),
+        s(
+            n.c4,
+            [-6.0 * x * y * z, 4.0 * z2 * z - 3.0 * x2 * z - 9.0 * y2 * z, 12.0 * y * z2 - 3.0 * x2 * y - 3.0 * y2 * y],
+        ),
         s(n.c5, [-60.0 * x * z2 + 12.0 * x * r2, -60.0 * y * z2 + 12.0 * y * r2, 80.0 * z2 * z - 48.0 * z * r2]),
-        s(n.c4, [4.0 * z2 * z - 9.0 * x2 * z - 3.0 * y2 * z, -6.0 * x * y * z, 12.0 * x * z2 - 3.0 * x2 * x - 3.0 * x * y2]),
+        s(
+            n.c4,
+            [4.0 * z2 * z - 9.0 * x2 * z - 3.0 * y2 * z, -6.0 * x * y * z, 12.0 * x * z2 - 3.0 * x2 * x - 3.0 * x * y2],
+        ),
         s(n.c6, [12.0 * x * z2 - 4.0 * x2 * x, -12.0 * y * z2 + 4.0 * y2 * y, 12.0 * x2 * z - 12.0 * y2 * z]),
         s(n.c2, [3.0 * x2 * z - 3.0 * y2 * z, -6.0 * x * y * z, x2 * x - 3.0 * x * y2]),
         s(n.c7, [4.0 * x2 * x - 12.0 * x * y2, -12.0 * x2 * y + 4.0 * y2 * y, 0.0]),
@@ -327,7 +334,9 @@ pub fn project_from(s: &[f64; 9], start: &Mat3, max_iter: usize, tol: f64) -> Pr
 fn global_starts() -> Vec<Mat3> {
     let t = std::f64::consts::FRAC_PI_6;
     let mut out = vec![Mat3::identity()];
-    for axis in [Vec3::new(1.0, 1.0, 1.0), Vec3::new(1.0, 1.0, -1.0), Vec3::new(1.0, -1.0, 1.0), Vec3::new(-1.0, 1.0, 1.0)] {
+    for axis in
+        [Vec3::new(1.0, 1.0, 1.0), Vec3::new(1.0, 1.0, -1.0), Vec3::new(1.0, -1.0, 1.0), Vec3::new(-1.0, 1.0, 1.0)]
+    {
         out.push(rotation_from_vector(&(axis.normalize() * t)));
     }
     for axis in [Vec3::x(), Vec3::y(), Vec3::z()] {
@@ -409,8 +418,15 @@ pub fn nearest_normal_aligned_frame(s: &[f64; 9], n: &Vec3) -> (Projection, f64)
 /// ≤ 9: 5-point Gauss–Legendre in `z` times 10 equispaced longitudes.
 /// Returns `(point, weight)` pairs (weights sum to 4π).
 pub fn sphere_quadrature_degree9() -> Vec<(Vec3, f64)> {
-    const Z: [f64; 5] = [-0.906_179_845_938_664, -0.538_469_310_105_683_1, 0.0, 0.538_469_310_105_683_1, 0.906_179_845_938_664];
-    const W: [f64; 5] = [0.236_926_885_056_189_1, 0.478_628_670_499_366_5, 0.568_888_888_888_888_9, 0.478_628_670_499_366_5, 0.236_926_885_056_189_1];
+    const Z: [f64; 5] =
+        [-0.906_179_845_938_664, -0.538_469_310_105_683_1, 0.0, 0.538_469_310_105_683_1, 0.906_179_845_938_664];
+    const W: [f64; 5] = [
+        0.236_926_885_056_189_1,
+        0.478_628_670_499_366_5,
+        0.568_888_888_888_888_9,
+        0.478_628_670_499_366_5,
+        0.236_926_885_056_189_1,
+    ];
     let m = 10;
     let mut out = Vec::with_capacity(5 * m);
     for (z, w) in Z.iter().zip(W) {
@@ -450,7 +466,12 @@ mod tests {
     use rand::{Rng, SeedableRng};
 
     fn random_rotation(rng: &mut StdRng) -> Mat3 {
-        let q = Quat::new(rng.random_range(-1.0..1.0), rng.random_range(-1.0..1.0), rng.random_range(-1.0..1.0), rng.random_range(-1.0..1.0));
+        let q = Quat::new(
+            rng.random_range(-1.0..1.0),
+            rng.random_range(-1.0..1.0),
+            rng.random_range(-1.0..1.0),
+            rng.random_range(-1.0..1.0),
+        );
         q.normalized().to_matrix()
     }
 
@@ -631,7 +652,10 @@ mod tests {
             // Quaternion ↔ 9-vector, up to the 48 elements of O.
             let q = quaternion_from_sh9(&s);
             let q_in = Quat::from_matrix(&r);
-            let best = super::super::groups::binary_octahedral_group().iter().map(|o| q_in.mul(o).dot(&q).abs()).fold(0.0, f64::max);
+            let best = super::super::groups::binary_octahedral_group()
+                .iter()
+                .map(|o| q_in.mul(o).dot(&q).abs())
+                .fold(0.0, f64::max);
             assert!((best - 1.0).abs() < 1e-12, "{best}");
             let p = nearest_frame(&s, None, 1e-9);
             assert!((p.alignment - 1.0).abs() < 1e-12);
@@ -672,7 +696,8 @@ mod tests {
     fn normal_aligned_projection_is_exact_on_the_family() {
         let mut rng = StdRng::seed_from_u64(56);
         for _ in 0..50 {
-            let n = Vec3::new(rng.random_range(-1.0..1.0), rng.random_range(-1.0..1.0), rng.random_range(-1.0..1.0)).normalize();
+            let n = Vec3::new(rng.random_range(-1.0..1.0), rng.random_range(-1.0..1.0), rng.random_range(-1.0..1.0))
+                .normalize();
             let theta = rng.random_range(-3.0..3.0);
             let r = normal_aligned_frame(&n, theta);
             assert!(r.column(2).dot(&n).abs() > 1.0 - 1e-14);
@@ -689,4 +714,3 @@ mod tests {
         }
     }
 }
-

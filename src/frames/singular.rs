@@ -38,8 +38,8 @@ use super::groups::binary_octahedral_group;
 use super::quaternion::{Mat3, Quat};
 use super::sh4::{dot9, nearest_frame_to_tolerance};
 use crate::mesh::TetMesh;
-use rayon::prelude::*;
 use crate::progress::{Cancelled, Progress};
+use rayon::prelude::*;
 use serde::Serialize;
 
 /// Type of a singular edge.
@@ -126,7 +126,9 @@ pub fn tet_frames(
                     s[c] += 0.25 * sh9_per_vertex[v.idx()][c];
                 }
             }
-            let best = t.iter().max_by(|a, b| dot9(&s, &sh9_per_vertex[a.idx()]).total_cmp(&dot9(&s, &sh9_per_vertex[b.idx()])));
+            let best = t
+                .iter()
+                .max_by(|a, b| dot9(&s, &sh9_per_vertex[a.idx()]).total_cmp(&dot9(&s, &sh9_per_vertex[b.idx()])));
             let hint = best.map(|v| rotation_per_vertex[v.idx()]);
             nearest_frame_to_tolerance(&s, hint.as_ref(), 0.3, 1e-9).rotation
         })
@@ -179,7 +181,8 @@ fn octa_group() -> &'static OctaGroup {
     static GROUP: std::sync::OnceLock<OctaGroup> = std::sync::OnceLock::new();
     GROUP.get_or_init(|| {
         let elements = binary_octahedral_group();
-        let mul = elements.iter().map(|a| std::array::from_fn(|b| nearest_octahedral_index(&a.mul(&elements[b])))).collect();
+        let mul =
+            elements.iter().map(|a| std::array::from_fn(|b| nearest_octahedral_index(&a.mul(&elements[b])))).collect();
         OctaGroup { elements, mul }
     })
 }
@@ -304,7 +307,12 @@ pub fn singular_edges(
                 } else {
                     SingularKind::Complex
                 };
-                res.edges.push(SingularEdge { vertices: [a, b], kind, holonomy_angle_deg: angle.to_degrees(), axis_alignment: align.abs() });
+                res.edges.push(SingularEdge {
+                    vertices: [a, b],
+                    kind,
+                    holonomy_angle_deg: angle.to_degrees(),
+                    axis_alignment: align.abs(),
+                });
             }
             res
         })
@@ -409,7 +417,8 @@ fn curve_structure(edges: &[SingularEdge], boundary_vertex: &[bool], report: &mu
     let dangling = |v: u32| degree.get(&v) == Some(&1) && !boundary_vertex.get(v as usize).copied().unwrap_or(false);
     report.n_dangling_interior_ends = degree.keys().filter(|&&v| dangling(v)).count();
     report.n_branch_vertices = degree.values().filter(|&&d| d >= 3).count();
-    report.n_isolated_edges = edges.iter().filter(|e| degree[&e.vertices[0]] == 1 && degree[&e.vertices[1]] == 1).count();
+    report.n_isolated_edges =
+        edges.iter().filter(|e| degree[&e.vertices[0]] == 1 && degree[&e.vertices[1]] == 1).count();
     // Components by union-find over vertices.
     let mut ids: Vec<u32> = degree.keys().copied().collect();
     ids.sort_unstable();
@@ -432,7 +441,13 @@ pub(crate) mod tests {
         let mut rng = StdRng::seed_from_u64(71);
         let group = binary_octahedral_group();
         for _ in 0..500 {
-            let q = Quat::new(rng.random_range(-1.0..1.0), rng.random_range(-1.0..1.0), rng.random_range(-1.0..1.0), rng.random_range(-1.0..1.0)).normalized();
+            let q = Quat::new(
+                rng.random_range(-1.0..1.0),
+                rng.random_range(-1.0..1.0),
+                rng.random_range(-1.0..1.0),
+                rng.random_range(-1.0..1.0),
+            )
+            .normalized();
             let o = nearest_octahedral_element(&q);
             let best = group.iter().map(|g| g.dot(&q).abs()).fold(0.0, f64::max);
             assert!((o.dot(&q).abs() - best).abs() < 1e-14);

@@ -49,9 +49,9 @@
 use super::bvh::TriangleBvh;
 use crate::geom::Vec3;
 use crate::mesh::{TetMesh, TriMesh, VertexId};
+use crate::progress::{Cancelled, Progress};
 use rayon::prelude::*;
 use std::collections::HashMap;
-use crate::progress::{Cancelled, Progress};
 
 /// Marker for "no surface triangle".
 pub const NO_TRIANGLE: u32 = u32::MAX;
@@ -207,7 +207,8 @@ pub fn isosurface_stuffing_cancellable(
     progress: &Progress,
 ) -> Result<StuffedVolume, Cancelled> {
     let h = params.spacing;
-    let bb = surface.bounding_box().unwrap_or_else(|| crate::geom::BoundingBox { min: Vec3::zeros(), max: Vec3::zeros() });
+    let bb =
+        surface.bounding_box().unwrap_or_else(|| crate::geom::BoundingBox { min: Vec3::zeros(), max: Vec3::zeros() });
     let offset = Vec3::from(params.lattice_offset) * h;
     let origin = bb.min - Vec3::repeat(1.5 * h) - offset;
     let ext = bb.max - origin;
@@ -239,8 +240,12 @@ pub fn isosurface_stuffing_cancellable(
     let mut position_override: HashMap<u32, (Vec3, u32)> = HashMap::new();
     let n_warped = warp(&lat, &mut sign, &mut cuts, &mut position_override, params);
     progress.check()?;
-    let cut_index: HashMap<u64, u32> =
-        cuts.iter().enumerate().filter(|(_, c)| sign[c.a as usize] * sign[c.b as usize] < 0).map(|(i, c)| (edge_key(c.a, c.b), i as u32)).collect();
+    let cut_index: HashMap<u64, u32> = cuts
+        .iter()
+        .enumerate()
+        .filter(|(_, c)| sign[c.a as usize] * sign[c.b as usize] < 0)
+        .map(|(i, c)| (edge_key(c.a, c.b), i as u32))
+        .collect();
 
     // 4. Fill.
     let mut fill = Fill {
@@ -259,15 +264,30 @@ pub fn isosurface_stuffing_cancellable(
             for i in 0..nx {
                 let c = lat.red(i, j, k);
                 if i + 1 < nx {
-                    let f = [lat.black(i + 1, j, k), lat.black(i + 1, j + 1, k), lat.black(i + 1, j + 1, k + 1), lat.black(i + 1, j, k + 1)];
+                    let f = [
+                        lat.black(i + 1, j, k),
+                        lat.black(i + 1, j + 1, k),
+                        lat.black(i + 1, j + 1, k + 1),
+                        lat.black(i + 1, j, k + 1),
+                    ];
                     fill.face_tets(c, lat.red(i + 1, j, k), f);
                 }
                 if j + 1 < ny {
-                    let f = [lat.black(i, j + 1, k), lat.black(i + 1, j + 1, k), lat.black(i + 1, j + 1, k + 1), lat.black(i, j + 1, k + 1)];
+                    let f = [
+                        lat.black(i, j + 1, k),
+                        lat.black(i + 1, j + 1, k),
+                        lat.black(i + 1, j + 1, k + 1),
+                        lat.black(i, j + 1, k + 1),
+                    ];
                     fill.face_tets(c, lat.red(i, j + 1, k), f);
                 }
                 if k + 1 < nz {
-                    let f = [lat.black(i, j, k + 1), lat.black(i + 1, j, k + 1), lat.black(i + 1, j + 1, k + 1), lat.black(i, j + 1, k + 1)];
+                    let f = [
+                        lat.black(i, j, k + 1),
+                        lat.black(i + 1, j, k + 1),
+                        lat.black(i + 1, j + 1, k + 1),
+                        lat.black(i, j + 1, k + 1),
+                    ];
                     fill.face_tets(c, lat.red(i, j, k + 1), f);
                 }
             }
@@ -312,12 +332,25 @@ pub fn isosurface_stuffing_cancellable(
     }
     let mut mesh = TetMesh { positions, tets: out_tets };
     mesh.orient_positive();
-    Ok(StuffedVolume { mesh, surface_triangle_per_vertex: tri_of, n_warped, n_cut_points, n_steiner, n_cut_fallbacks, n_recast_rows })
+    Ok(StuffedVolume {
+        mesh,
+        surface_triangle_per_vertex: tri_of,
+        n_warped,
+        n_cut_points,
+        n_steiner,
+        n_cut_fallbacks,
+        n_recast_rows,
+    })
 }
 
 /// Inside (−1) / outside (+1) sign of every lattice vertex by row parity;
 /// returns the signs and the number of recast rows.
-fn lattice_signs(lat: &Lattice, bvh: &TriangleBvh, length: f64, progress: &Progress) -> Result<(Vec<i8>, usize), Cancelled> {
+fn lattice_signs(
+    lat: &Lattice,
+    bvh: &TriangleBvh,
+    length: f64,
+    progress: &Progress,
+) -> Result<(Vec<i8>, usize), Cancelled> {
     let mut sign = vec![1i8; lat.n_vertices()];
     // Rows: (is_red, j, k).
     let mut rows = Vec::with_capacity((lat.ny + 1) * (lat.nz + 1) + lat.ny * lat.nz);
@@ -451,7 +484,13 @@ fn compute_cut(lat: &Lattice, bvh: &TriangleBvh, inside: u32, outside: u32) -> C
 
 /// Warp lattice vertices onto violating cut points (sequential, id order);
 /// returns how many were warped.
-fn warp(lat: &Lattice, sign: &mut [i8], cuts: &mut [Cut], overrides: &mut HashMap<u32, (Vec3, u32)>, params: &StuffingParams) -> usize {
+fn warp(
+    lat: &Lattice,
+    sign: &mut [i8],
+    cuts: &mut [Cut],
+    overrides: &mut HashMap<u32, (Vec3, u32)>,
+    params: &StuffingParams,
+) -> usize {
     // Incident cuts per lattice vertex.
     let mut incident: Vec<(u32, u32)> = Vec::with_capacity(2 * cuts.len());
     for (ci, c) in cuts.iter().enumerate() {
@@ -536,12 +575,18 @@ impl Fill<'_> {
         let from = match self.rule {
             DiagonalRule::LowerIndex => lo,
             DiagonalRule::Shortest => {
-                if (phi - clo).norm_squared() < (plo - chi).norm_squared() { hi } else { lo }
+                if (phi - clo).norm_squared() < (plo - chi).norm_squared() {
+                    hi
+                } else {
+                    lo
+                }
             }
             DiagonalRule::MaxMinAngle => {
                 // Split from lo: triangles (lo, hi, chi), (lo, chi, clo);
                 // from hi: (lo, hi, clo), (hi, chi, clo).
-                let min_angle = |t: [&Vec3; 3]| crate::geom::corner_angles(t[0], t[1], t[2]).iter().copied().fold(f64::INFINITY, f64::min);
+                let min_angle = |t: [&Vec3; 3]| {
+                    crate::geom::corner_angles(t[0], t[1], t[2]).iter().copied().fold(f64::INFINITY, f64::min)
+                };
                 let from_lo = min_angle([&plo, &phi, &chi]).min(min_angle([&plo, &chi, &clo]));
                 let from_hi = min_angle([&plo, &phi, &clo]).min(min_angle([&phi, &chi, &clo]));
                 if from_hi > from_lo { hi } else { lo }

@@ -20,11 +20,11 @@
 use super::bvh::TriangleBvh;
 use super::error::{FramesError, OpenLoop};
 use super::stuffing::{StuffedVolume, StuffingParams, isosurface_stuffing_cancellable};
-use crate::progress::Progress;
 use crate::fem::tet_p1::tet_p1_gradients;
 use crate::geom::Vec3;
 use crate::mesh::boundary::boundary_pieces;
 use crate::mesh::{TetMesh, Topology, TriMesh};
+use crate::progress::Progress;
 use rayon::prelude::*;
 use serde::Serialize;
 
@@ -115,7 +115,11 @@ pub const MAX_LATTICE_CELLS: f64 = (u32::MAX / 4) as f64;
 /// # Errors
 /// [`FramesError::InvalidOption`] for a non-positive size,
 /// [`FramesError::TooManyTets`] for an explicit size that is too small.
-pub fn lattice_spacing(surface: &TriMesh, target_size: Option<f64>, max_tets: usize) -> Result<(f64, bool), FramesError> {
+pub fn lattice_spacing(
+    surface: &TriMesh,
+    target_size: Option<f64>,
+    max_tets: usize,
+) -> Result<(f64, bool), FramesError> {
     let volume = surface.signed_volume().abs();
     let ext = surface.bounding_box().map_or(Vec3::zeros(), |b| b.max - b.min);
     let tets = |h: f64| 12.0 * volume / (h * h * h);
@@ -125,11 +129,18 @@ pub fn lattice_spacing(surface: &TriMesh, target_size: Option<f64>, max_tets: us
     let fits = |h: f64| tets(h) <= max_tets as f64 && cells(h) <= max_cells;
     if let Some(h) = target_size {
         if !(h > 0.0) || !h.is_finite() {
-            return Err(FramesError::InvalidOption { name: "target_size", reason: format!("must be a positive length, got {h}") });
+            return Err(FramesError::InvalidOption {
+                name: "target_size",
+                reason: format!("must be a positive length, got {h}"),
+            });
         }
         if !fits(h) {
             let estimated = tets(h).max(cells(h) / LATTICE_CELLS_PER_TET);
-            return Err(FramesError::TooManyTets { target_size: h, estimated_tets: estimated.min(u64::MAX as f64) as u64, max_tets });
+            return Err(FramesError::TooManyTets {
+                target_size: h,
+                estimated_tets: estimated.min(u64::MAX as f64) as u64,
+                max_tets,
+            });
         }
         return Ok((h, false));
     }
@@ -165,7 +176,12 @@ pub fn lattice_spacing(surface: &TriMesh, target_size: Option<f64>, max_tets: us
 /// # Errors
 /// [`FramesError::NoInterior`] when nothing fits inside;
 /// [`FramesError::InvalidVolume`] if the result fails validation (a bug).
-pub fn tetrahedralize_enclosed_volume(surface: &TriMesh, spacing: f64, alpha_long: f64, alpha_short: f64) -> Result<(StuffedVolume, VolumeReport), FramesError> {
+pub fn tetrahedralize_enclosed_volume(
+    surface: &TriMesh,
+    spacing: f64,
+    alpha_long: f64,
+    alpha_short: f64,
+) -> Result<(StuffedVolume, VolumeReport), FramesError> {
     tetrahedralize_enclosed_volume_cancellable(surface, spacing, alpha_long, alpha_short, &Progress::none())
 }
 
@@ -183,7 +199,12 @@ pub fn tetrahedralize_enclosed_volume_cancellable(
 ) -> Result<(StuffedVolume, VolumeReport), FramesError> {
     let bvh = TriangleBvh::new(surface);
     progress.check()?;
-    let stuffed = isosurface_stuffing_cancellable(surface, &bvh, &StuffingParams::new(spacing, alpha_long, alpha_short), progress)?;
+    let stuffed = isosurface_stuffing_cancellable(
+        surface,
+        &bvh,
+        &StuffingParams::new(spacing, alpha_long, alpha_short),
+        progress,
+    )?;
     let enclosed = surface.signed_volume().abs();
     if stuffed.mesh.tets.is_empty() {
         return Err(FramesError::NoInterior { spacing, volume: enclosed });
@@ -358,7 +379,10 @@ mod tests {
         match check_closed(&cyl) {
             Err(FramesError::OpenSurface { loops, n_nonmanifold_edges: 0 }) => {
                 assert_eq!(loops.len(), 2);
-                assert!(loops.iter().all(|l| l.n_edges == 16 && (l.length - 16.0 * 2.0 * (std::f64::consts::PI / 16.0).sin()).abs() < 1e-9));
+                assert!(
+                    loops.iter().all(|l| l.n_edges == 16
+                        && (l.length - 16.0 * 2.0 * (std::f64::consts::PI / 16.0).sin()).abs() < 1e-9)
+                );
                 let msg = FramesError::OpenSurface { loops, n_nonmanifold_edges: 0 }.to_string();
                 assert!(msg.contains("2 boundary loop") && msg.contains("16 edges"), "{msg}");
             }
@@ -417,6 +441,10 @@ mod tests {
         assert!(rep.min_dihedral_deg > 5.0, "min dihedral {}", rep.min_dihedral_deg);
         // Every boundary vertex lies on a surface triangle.
         let b = boundary_vertices(&vol.mesh);
-        assert!(b.iter().enumerate().all(|(v, &is_b)| !is_b || vol.surface_triangle_per_vertex[v] != super::super::stuffing::NO_TRIANGLE));
+        assert!(
+            b.iter()
+                .enumerate()
+                .all(|(v, &is_b)| !is_b || vol.surface_triangle_per_vertex[v] != super::super::stuffing::NO_TRIANGLE)
+        );
     }
 }

@@ -36,7 +36,8 @@ pub fn write_frames_vtu(field: &FrameField, w: impl Write) -> Result<(), WriteEr
 /// [`WriteError`] on invalid data or an I/O failure.
 pub fn write_frames_vtu_with(field: &FrameField, w: impl Write, opts: &VtuOptions) -> Result<(), WriteError> {
     let axis = |k: usize| field.axes_per_vertex.iter().map(|a| a[k]).collect::<Vec<Vec3>>();
-    let complex = |k: usize| -> Vec<f64> { field.invariants_per_vertex.iter().flat_map(|h| [h[k].re, h[k].im]).collect() };
+    let complex =
+        |k: usize| -> Vec<f64> { field.invariants_per_vertex.iter().flat_map(|h| [h[k].re, h[k].im]).collect() };
     let point_data = vec![
         DataArray::vectors("frame_x", &axis(0)),
         DataArray::vectors("frame_y", &axis(1)),
@@ -49,7 +50,12 @@ pub fn write_frames_vtu_with(field: &FrameField, w: impl Write, opts: &VtuOption
         DataArray::u8("boundary", field.boundary_per_vertex.iter().map(|b| *b as u8).collect::<Vec<u8>>()),
     ];
     let cell_data = vec![DataArray::f64("tet_quaternion", 4, field.quaternion_per_tet.as_flattened())];
-    let mesh = VtuMesh { points: &field.volume.positions, cells: vec![CellBlock::Tetrahedra(&field.volume.tets)], point_data, cell_data };
+    let mesh = VtuMesh {
+        points: &field.volume.positions,
+        cells: vec![CellBlock::Tetrahedra(&field.volume.tets)],
+        point_data,
+        cell_data,
+    };
     write_vtu(w, &mesh, opts)
 }
 
@@ -81,8 +87,16 @@ pub fn write_singular_edges_vtu_with(field: &FrameField, w: impl Write, opts: &V
     }
     let cell_data = vec![
         DataArray::i32("valence", field.singular_edges.iter().map(|e| e.kind.valence_code()).collect::<Vec<i32>>()),
-        DataArray::f64("holonomy_angle", 1, field.singular_edges.iter().map(|e| e.holonomy_angle_deg).collect::<Vec<f64>>()),
-        DataArray::f64("axis_alignment", 1, field.singular_edges.iter().map(|e| e.axis_alignment).collect::<Vec<f64>>()),
+        DataArray::f64(
+            "holonomy_angle",
+            1,
+            field.singular_edges.iter().map(|e| e.holonomy_angle_deg).collect::<Vec<f64>>(),
+        ),
+        DataArray::f64(
+            "axis_alignment",
+            1,
+            field.singular_edges.iter().map(|e| e.axis_alignment).collect::<Vec<f64>>(),
+        ),
     ];
     let mesh = VtuMesh { points: &points, cells: vec![CellBlock::Lines(&lines)], point_data: Vec::new(), cell_data };
     write_vtu(w, &mesh, opts)

@@ -16,10 +16,7 @@ impl BoundingBox {
     pub fn of_points<'a>(points: impl IntoIterator<Item = &'a Vec3>) -> Option<Self> {
         let mut it = points.into_iter();
         let first = *it.next()?;
-        let mut b = BoundingBox {
-            min: first,
-            max: first,
-        };
+        let mut b = BoundingBox { min: first, max: first };
         for p in it {
             b.min = b.min.inf(p);
             b.max = b.max.sup(p);
@@ -39,9 +36,7 @@ impl BoundingBox {
 
     /// The six numbers `xmin ymin zmin xmax ymax zmax`, as MSH `$Entities` write them.
     pub fn to_array(&self) -> [f64; 6] {
-        [
-            self.min.x, self.min.y, self.min.z, self.max.x, self.max.y, self.max.z,
-        ]
+        [self.min.x, self.min.y, self.min.z, self.max.x, self.max.y, self.max.z]
     }
 }
 
@@ -51,11 +46,7 @@ mod tests {
 
     #[test]
     fn box_of_points_and_diagonal() {
-        let pts = [
-            Vec3::new(0.0, 0.0, 0.0),
-            Vec3::new(1.0, 2.0, 2.0),
-            Vec3::new(0.5, -1.0, 0.0),
-        ];
+        let pts = [Vec3::new(0.0, 0.0, 0.0), Vec3::new(1.0, 2.0, 2.0), Vec3::new(0.5, -1.0, 0.0)];
         let b = BoundingBox::of_points(&pts).unwrap();
         assert_eq!(b.min, Vec3::new(0.0, -1.0, 0.0));
         assert_eq!(b.max, Vec3::new(1.0, 2.0, 2.0));

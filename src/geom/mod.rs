@@ -9,8 +9,7 @@ pub mod triangle;
 
 pub use bbox::BoundingBox;
 pub use triangle::{
-    angle_between, corner_angles, triangle_area, triangle_area_vector, triangle_normal,
-    triangle_quality,
+    angle_between, corner_angles, triangle_area, triangle_area_vector, triangle_normal, triangle_quality,
 };
 
 /// A 3-vector (or point) of `f64`.

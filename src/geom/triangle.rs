@@ -31,11 +31,7 @@ pub fn angle_between(u: &Vec3, v: &Vec3) -> f64 {
 
 /// Interior angles at the three corners of `(a, b, c)`.
 pub fn corner_angles(a: &Vec3, b: &Vec3, c: &Vec3) -> [f64; 3] {
-    [
-        angle_between(&(b - a), &(c - a)),
-        angle_between(&(c - b), &(a - b)),
-        angle_between(&(a - c), &(b - c)),
-    ]
+    [angle_between(&(b - a), &(c - a)), angle_between(&(c - b), &(a - b)), angle_between(&(a - c), &(b - c))]
 }
 
 /// Shape quality `4√3·area / Σ edge²`: 1 for equilateral, 0 for degenerate.

@@ -370,8 +370,11 @@ pub async fn healthz(State(st): State<AppState>) -> Result<Json<Value>, ApiError
     })?;
     let problems = st.jobs.storage_problems().await;
     if !problems.is_empty() {
-        return Err(ApiError::new("service-unavailable", format!("the store is not writable: {}", problems.join("; ")))
-            .with("problems", problems));
+        return Err(ApiError::new(
+            "service-unavailable",
+            format!("the store is not writable: {}", problems.join("; ")),
+        )
+        .with("problems", problems));
     }
     Ok(Json(json!({"status": "ok", "version": env!("CARGO_PKG_VERSION")})))
 }

@@ -15,10 +15,10 @@
 pub mod auth;
 pub mod error;
 pub mod handlers;
-pub mod multipart_framing;
-pub mod range;
 pub mod idle_body;
+pub mod multipart_framing;
 pub mod parser_answers;
+pub mod range;
 pub mod server;
 pub mod upload;
 

@@ -97,9 +97,7 @@ pub enum IoError {
 
     /// A vertex coordinate is finite but so large that products of
     /// coordinates (areas, volumes) would overflow.
-    #[error(
-        "{format}: vertex {vertex} has coordinate {value:e} at {at}, beyond the supported magnitude {max:e}"
-    )]
+    #[error("{format}: vertex {vertex} has coordinate {value:e} at {at}, beyond the supported magnitude {max:e}")]
     CoordinateOutOfRange {
         /// Format being read.
         format: Format,

@@ -47,11 +47,17 @@ impl Format {
     pub fn from_media_type(ct: &str) -> Option<Format> {
         let essence = ct.split(';').next().unwrap_or("").trim().to_ascii_lowercase();
         let f = match essence.as_str() {
-            "model/stl" | "model/x.stl-ascii" | "model/x.stl-binary" | "application/sla" | "application/vnd.ms-pki.stl"
-            | "application/x-stl" | "application/stl" | "model/x-stl" | "text/x-stl" => Format::Stl,
-            "model/obj" | "model/x-obj" | "application/x-obj" | "text/x-obj" | "application/obj" | "application/x-tgif" => {
-                Format::Obj
-            }
+            "model/stl"
+            | "model/x.stl-ascii"
+            | "model/x.stl-binary"
+            | "application/sla"
+            | "application/vnd.ms-pki.stl"
+            | "application/x-stl"
+            | "application/stl"
+            | "model/x-stl"
+            | "text/x-stl" => Format::Stl,
+            "model/obj" | "model/x-obj" | "application/x-obj" | "text/x-obj" | "application/obj"
+            | "application/x-tgif" => Format::Obj,
             "application/ply" | "model/ply" | "model/x-ply" | "application/x-ply" | "text/x-ply" => Format::Ply,
             "model/x-gmsh" | "application/x-gmsh" | "model/vnd.gmsh" | "model/x-msh" | "application/x-msh"
             | "text/x-gmsh" | "text/x-msh" => Format::Msh,
@@ -134,8 +140,8 @@ pub(crate) fn starts_with_ignore_case(text: &[u8], prefix: &[u8]) -> bool {
 /// OBJ keyword (or when every complete line is a comment).
 fn first_statement_is_obj(text: &[u8]) -> bool {
     const KEYWORDS: &[&[u8]] = &[
-        b"v", b"vt", b"vn", b"vp", b"f", b"l", b"p", b"o", b"g", b"s", b"usemtl", b"mtllib", b"cstype", b"deg", b"curv",
-        b"surf",
+        b"v", b"vt", b"vn", b"vp", b"f", b"l", b"p", b"o", b"g", b"s", b"usemtl", b"mtllib", b"cstype", b"deg",
+        b"curv", b"surf",
     ];
     let mut saw_comment = false;
     for line in text.split(|&b| b == b'\n') {

@@ -163,7 +163,12 @@ pub fn load_bytes(bytes: &[u8], format: Option<Format>, opts: &LoadOptions) -> R
 ///
 /// # Errors
 /// Every reader error.
-pub fn read_raw<R: BufRead>(reader: R, format: Format, total_len: Option<u64>, limits: &Limits) -> Result<RawMesh, IoError> {
+pub fn read_raw<R: BufRead>(
+    reader: R,
+    format: Format,
+    total_len: Option<u64>,
+    limits: &Limits,
+) -> Result<RawMesh, IoError> {
     match format {
         Format::Stl => stl::read(reader, total_len, limits),
         Format::Obj => obj::read(reader, limits),
@@ -213,15 +218,16 @@ pub fn finish(raw: RawMesh, format: Format, opts: &LoadOptions) -> Result<Loaded
         }
     };
     let n_input_triangles = triangles.len();
-    let (surface, mut report) = repair_triangle_soup(positions, triangles, opts.weld_tolerance).map_err(|e| {
-        IoError::InvalidMesh { format, detail: e.to_string() }
-    })?;
+    let (surface, mut report) = repair_triangle_soup(positions, triangles, opts.weld_tolerance)
+        .map_err(|e| IoError::InvalidMesh { format, detail: e.to_string() })?;
     if surface.n_faces() == 0 {
         return Err(IoError::NoTriangles {
             format,
             detail: format!(
                 "all {n_input_triangles} triangles were removed by repair ({} repeat a vertex after welding, {} have zero area, {} are duplicates)",
-                report.n_degenerate_triangles_removed, report.n_zero_area_triangles_removed, report.n_duplicate_triangles_removed
+                report.n_degenerate_triangles_removed,
+                report.n_zero_area_triangles_removed,
+                report.n_duplicate_triangles_removed
             ),
         });
     }
@@ -368,7 +374,11 @@ mod tests {
         let o: LoadOptions = serde_json::from_str(r#"{"weld_tolerance": 0}"#).unwrap();
         assert_eq!((o.weld_tolerance, o.max_triangles), (0.0, 5_000_000));
         assert!(serde_json::from_str::<LoadOptions>(r#"{"weld": 1}"#).is_err());
-        for bad in [LoadOptions { weld_tolerance: -1.0, ..Default::default() }, LoadOptions { weld_tolerance: f64::NAN, ..Default::default() }, LoadOptions { max_triangles: 0, ..Default::default() }] {
+        for bad in [
+            LoadOptions { weld_tolerance: -1.0, ..Default::default() },
+            LoadOptions { weld_tolerance: f64::NAN, ..Default::default() },
+            LoadOptions { max_triangles: 0, ..Default::default() },
+        ] {
             assert_eq!(load_bytes(b"x", Some(Format::Obj), &bad).unwrap_err().kind(), "invalid-options");
         }
     }

@@ -216,10 +216,7 @@ fn read_header<R: BufRead>(src: &mut Source<R>) -> Result<Header, IoError> {
             src.skip_to_marker(b"$EndComments", true)?;
             continue;
         }
-        return Err(src.parse_error(format!(
-            "expected `$MeshFormat` first, found `{}`",
-            super::source::show(line)
-        )));
+        return Err(src.parse_error(format!("expected `$MeshFormat` first, found `{}`", super::source::show(line))));
     }
     let v = src.expect_token("the MSH version")?.to_vec();
     let file_type = src.expect_u64("the file type (0 = ASCII, 1 = binary)")?;
@@ -417,7 +414,8 @@ pub fn prepare_nodes<R: BufRead>(src: &Source<R>, nodes: &mut NodeTable, sink: &
             Ok(())
         }
         Err(d) => {
-            let p = |i: u32| positions.get(i as usize).map(|v| format!("({}, {}, {})", v.x, v.y, v.z)).unwrap_or_default();
+            let p =
+                |i: u32| positions.get(i as usize).map(|v| format!("({}, {}, {})", v.x, v.y, v.z)).unwrap_or_default();
             Err(src.parse_error_at(
                 d.second.1,
                 format!(

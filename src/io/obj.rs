@@ -41,9 +41,8 @@ pub fn read<R: BufRead>(reader: R, limits: &Limits) -> Result<RawMesh, IoError> 
             b"v" => {
                 let mut p = [0.0; 3];
                 for (k, c) in p.iter_mut().enumerate() {
-                    let t = toks
-                        .next()
-                        .ok_or_else(|| src.parse_error(format!("`v` needs 3 coordinates, found {k}")))?;
+                    let t =
+                        toks.next().ok_or_else(|| src.parse_error(format!("`v` needs 3 coordinates, found {k}")))?;
                     *c = parse_f64(t).ok_or_else(|| src.parse_error(format!("`{}` is not a number", show(t))))?;
                 }
                 let no = sink.n_vertices() as u64 + 1;
@@ -59,7 +58,11 @@ pub fn read<R: BufRead>(reader: R, limits: &Limits) -> Result<RawMesh, IoError> 
                         src.parse_error(format!("face {n_faces}: `{}` is not a vertex index", show(t)))
                     })?;
                     let idx = match i {
-                        0 => return Err(src.parse_error(format!("face {n_faces}: index 0 is invalid (OBJ indices start at 1)"))),
+                        0 => {
+                            return Err(
+                                src.parse_error(format!("face {n_faces}: index 0 is invalid (OBJ indices start at 1)"))
+                            );
+                        }
                         i if i > 0 => {
                             let i = i as u64;
                             if max_ref.is_none_or(|(m, _, _)| i > m) {
@@ -125,10 +128,7 @@ mod tests {
         let text = "# test\nmtllib x.mtl\no obj\nv 0 0 0\nv 1 0 0 1.0\nv 1 1 0 0.5 0.5 0.5\nv 0 1 0\nvt 0 0\nvt 1 0\nvt 1 1\nvt 0 1\nvt 9 9\nvn 0 0 1\ng grp\nusemtl m\ns 1\nf 1 2 3\nf 1/1 3/3 4/4\nf 1//1 2//1 3//1\nf 1/1/1 2/2/1 3/3/1 4/4/1\nf -4 -3 -2\nl 1 2\np 3\n";
         let m = read(text.as_bytes(), &limits()).unwrap();
         assert_eq!(m.positions.len(), 4);
-        assert_eq!(
-            m.triangles,
-            vec![[0, 1, 2], [0, 2, 3], [0, 1, 2], [0, 1, 2], [0, 2, 3], [0, 1, 2]]
-        );
+        assert_eq!(m.triangles, vec![[0, 1, 2], [0, 2, 3], [0, 1, 2], [0, 1, 2], [0, 2, 3], [0, 1, 2]]);
         assert_eq!(m.n_polygons_triangulated, 1);
         assert_eq!(m.skipped["line"], 1);
         assert_eq!(m.skipped["point"], 1);
@@ -141,7 +141,10 @@ mod tests {
         let e = read("v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 3\nf 1 2 7\nf 1 7 3\n".as_bytes(), &limits()).unwrap_err();
         assert_eq!(e.kind(), "index-out-of-range");
         let m = e.to_string();
-        assert!(m.contains("face 2") && m.contains("vertex 7") && m.contains("line 5") && m.contains("3 vertices"), "{m}");
+        assert!(
+            m.contains("face 2") && m.contains("vertex 7") && m.contains("line 5") && m.contains("3 vertices"),
+            "{m}"
+        );
     }
 
     #[test]

@@ -140,7 +140,8 @@ pub fn read<R: BufRead>(reader: R, total_len: Option<u64>, limits: &Limits) -> R
     let mut checker = IndexChecker::default();
     // Check every declaration before reading data: header errors come first.
     let mut seen_vertex = false;
-    let roles = elements.iter().map(|el| role_of(&src, el, &mut seen_vertex)).collect::<Result<Vec<Role>, IoError>>()?;
+    let roles =
+        elements.iter().map(|el| role_of(&src, el, &mut seen_vertex)).collect::<Result<Vec<Role>, IoError>>()?;
     for (el, &role) in elements.iter().zip(&roles) {
         let remaining = total_len.map(|t| t.saturating_sub(src.offset()));
         match role {
@@ -246,9 +247,8 @@ fn role_of<R: BufRead>(src: &Source<R>, el: &Element, seen_vertex: &mut bool) ->
             *seen_vertex = true;
             let mut idx = [0; 3];
             for (k, axis) in ["x", "y", "z"].into_iter().enumerate() {
-                idx[k] = find(axis).ok_or_else(|| {
-                    src.parse_error_at(at, format!("the `vertex` element has no `{axis}` property"))
-                })?;
+                idx[k] = find(axis)
+                    .ok_or_else(|| src.parse_error_at(at, format!("the `vertex` element has no `{axis}` property")))?;
                 if !matches!(el.props[idx[k]].1, Property::Scalar(_)) {
                     return Err(src.parse_error_at(at, format!("vertex property `{axis}` must be a scalar")));
                 }
@@ -379,7 +379,12 @@ fn ascii_value<R: BufRead>(src: &mut Source<R>, ty: Scalar, el: &Element, i: u64
         ));
     }
     ty.parse(src.token()).ok_or_else(|| {
-        src.parse_error(format!("{} {}: property `{name}`: `{}` is not a {ty:?} number", el.name, i + 1, show(src.token())))
+        src.parse_error(format!(
+            "{} {}: property `{name}`: `{}` is not a {ty:?} number",
+            el.name,
+            i + 1,
+            show(src.token())
+        ))
     })
 }
 
@@ -557,20 +562,31 @@ mod tests {
     fn header_and_body_errors() {
         let e = read("plx\n".as_bytes(), None, &limits()).unwrap_err();
         assert!(e.to_string().contains("does not start with `ply`"), "{e}");
-        let e = read("ply\nformat ascii 1.0\nelement vertex 1\nproperty float x\nproperty float y\nend_header\n0 0\n".as_bytes(), None, &limits())
-            .unwrap_err();
+        let e = read(
+            "ply\nformat ascii 1.0\nelement vertex 1\nproperty float x\nproperty float y\nend_header\n0 0\n".as_bytes(),
+            None,
+            &limits(),
+        )
+        .unwrap_err();
         assert!(e.to_string().contains("no `z` property") && e.to_string().contains("line 3"), "{e}");
-        let e = read("ply\nformat ascii 1.0\nelement vertex 1\nproperty flt x\n".as_bytes(), None, &limits()).unwrap_err();
+        let e =
+            read("ply\nformat ascii 1.0\nelement vertex 1\nproperty flt x\n".as_bytes(), None, &limits()).unwrap_err();
         assert!(e.to_string().contains("unknown property type `flt`") && e.to_string().contains("line 4"), "{e}");
         let e = read("ply\nformat ascii 1.0\nelement vertex 1\n".as_bytes(), None, &limits()).unwrap_err();
         assert_eq!(e.kind(), "truncated");
         let bad = ASCII.replace("1 1 0 1 7 10", "1 1 q 1 7 10");
         let e = read(bad.as_bytes(), None, &limits()).unwrap_err();
-        assert!(e.to_string().contains("line 19") && e.to_string().contains("vertex 3") && e.to_string().contains("`q`"), "{e}");
+        assert!(
+            e.to_string().contains("line 19") && e.to_string().contains("vertex 3") && e.to_string().contains("`q`"),
+            "{e}"
+        );
         let bad = ASCII.replace("3 0 1 2 5", "3 0 1 9 5");
         let e = read(bad.as_bytes(), None, &limits()).unwrap_err();
         assert_eq!(e.kind(), "index-out-of-range");
-        assert!(e.to_string().contains("face 1") && e.to_string().contains("vertex 9") && e.to_string().contains("line 21"), "{e}");
+        assert!(
+            e.to_string().contains("face 1") && e.to_string().contains("vertex 9") && e.to_string().contains("line 21"),
+            "{e}"
+        );
         let bad = ASCII.replace("3 0 1 2 5", "3 0 -1 2 5");
         let e = read(bad.as_bytes(), None, &limits()).unwrap_err();
         assert_eq!(e.kind(), "index-out-of-range");
@@ -587,12 +603,18 @@ mod tests {
     #[test]
     fn element_declaration_errors() {
         let head = "ply\nformat ascii 1.0\nelement vertex 3\nproperty float x\nproperty float y\nproperty float z\n";
-        let e = read(format!("{head}element face 1\nproperty list uchar float vertex_indices\nend_header\n").as_bytes(), None, &limits())
-            .unwrap_err();
+        let e = read(
+            format!("{head}element face 1\nproperty list uchar float vertex_indices\nend_header\n").as_bytes(),
+            None,
+            &limits(),
+        )
+        .unwrap_err();
         assert!(e.to_string().contains("integer type") && e.to_string().contains("line 7"), "{e}");
-        let e = read(format!("{head}element face 1\nproperty int flags\nend_header\n").as_bytes(), None, &limits()).unwrap_err();
+        let e = read(format!("{head}element face 1\nproperty int flags\nend_header\n").as_bytes(), None, &limits())
+            .unwrap_err();
         assert!(e.to_string().contains("no `vertex_indices`"), "{e}");
-        let e = read(format!("{head}element vertex 1\nproperty float x\nend_header\n").as_bytes(), None, &limits()).unwrap_err();
+        let e = read(format!("{head}element vertex 1\nproperty float x\nend_header\n").as_bytes(), None, &limits())
+            .unwrap_err();
         assert!(e.to_string().contains("second `vertex`"), "{e}");
         let e = read("ply\nelement vertex 1\nend_header\n".as_bytes(), None, &limits()).unwrap_err();
         assert!(e.to_string().contains("no `format`"), "{e}");

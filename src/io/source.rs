@@ -351,7 +351,8 @@ impl<R: BufRead> Source<R> {
             let rest = &self.buf[self.tok_pos..];
             if let Some(s) = rest.iter().position(|b| !b.is_ascii_whitespace()) {
                 let start = self.tok_pos + s;
-                let len = self.buf[start..].iter().position(|b| b.is_ascii_whitespace()).unwrap_or(self.buf.len() - start);
+                let len =
+                    self.buf[start..].iter().position(|b| b.is_ascii_whitespace()).unwrap_or(self.buf.len() - start);
                 self.tok = (start, start + len);
                 self.tok_pos = start + len;
                 return Ok(true);
@@ -389,7 +390,8 @@ impl<R: BufRead> Source<R> {
     /// Truncation, or a token that is not a non-negative integer.
     pub fn expect_u64(&mut self, what: &str) -> Result<u64, IoError> {
         self.expect_token(what)?;
-        parse_u64(self.token()).ok_or_else(|| self.parse_error(format!("expected {what}, found `{}`", show(self.token()))))
+        parse_u64(self.token())
+            .ok_or_else(|| self.parse_error(format!("expected {what}, found `{}`", show(self.token()))))
     }
 
     /// The next token as an integer.
@@ -398,7 +400,8 @@ impl<R: BufRead> Source<R> {
     /// Truncation, or a token that is not an integer.
     pub fn expect_i64(&mut self, what: &str) -> Result<i64, IoError> {
         self.expect_token(what)?;
-        parse_i64(self.token()).ok_or_else(|| self.parse_error(format!("expected {what}, found `{}`", show(self.token()))))
+        parse_i64(self.token())
+            .ok_or_else(|| self.parse_error(format!("expected {what}, found `{}`", show(self.token()))))
     }
 
     /// The next token as a number.
@@ -407,7 +410,8 @@ impl<R: BufRead> Source<R> {
     /// Truncation, or a token that is not a number.
     pub fn expect_f64(&mut self, what: &str) -> Result<f64, IoError> {
         self.expect_token(what)?;
-        parse_f64(self.token()).ok_or_else(|| self.parse_error(format!("expected {what}, found `{}`", show(self.token()))))
+        parse_f64(self.token())
+            .ok_or_else(|| self.parse_error(format!("expected {what}, found `{}`", show(self.token()))))
     }
 
     /// The current token (see [`Self::next_token`]).
@@ -523,10 +527,7 @@ impl<R: BufRead> Source<R> {
         loop {
             let avail = self.fill()?;
             if avail.is_empty() {
-                return Err(self.truncated_at(
-                    start,
-                    format!("missing `{}`", String::from_utf8_lossy(marker)),
-                ));
+                return Err(self.truncated_at(start, format!("missing `{}`", String::from_utf8_lossy(marker))));
             }
             let mut used = 0;
             let mut found = false;

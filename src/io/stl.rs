@@ -142,7 +142,8 @@ fn read_binary<R: BufRead>(src: &mut Source<R>, total_len: Option<u64>, sink: &m
         let mut corner = [0u32; 3];
         for (k, c) in corner.iter_mut().enumerate() {
             let o = 12 + 12 * k;
-            let f = |j: usize| f64::from(f32::from_le_bytes([rec[o + j], rec[o + j + 1], rec[o + j + 2], rec[o + j + 3]]));
+            let f =
+                |j: usize| f64::from(f32::from_le_bytes([rec[o + j], rec[o + j + 1], rec[o + j + 2], rec[o + j + 3]]));
             let at = Location::Byte(start + o as u64);
             *c = sink.vertex([f(0), f(4), f(8)], 3 * i + k as u64 + 1, at)?;
         }
@@ -225,9 +226,9 @@ fn read_ascii<R: BufRead>(src: &mut Source<R>, sink: &mut MeshSink) -> Result<()
             (State::InLoop, b"vertex") => {
                 let mut p = [0.0; 3];
                 for (k, c) in p.iter_mut().enumerate() {
-                    let t = toks.next().ok_or_else(|| {
-                        src.parse_error(format!("`vertex` needs 3 coordinates, found {k}"))
-                    })?;
+                    let t = toks
+                        .next()
+                        .ok_or_else(|| src.parse_error(format!("`vertex` needs 3 coordinates, found {k}")))?;
                     *c = parse_f64(t).ok_or_else(|| src.parse_error(format!("`{}` is not a number", show(t))))?;
                 }
                 n_vertices_seen += 1;
@@ -260,10 +261,9 @@ fn read_ascii<R: BufRead>(src: &mut Source<R>, sink: &mut MeshSink) -> Result<()
     match state {
         // A missing final `endsolid` loses nothing: accept it.
         State::Outside | State::InSolid => Ok(()),
-        _ => Err(src.truncated_at(
-            src.at_line(),
-            format!("the file ends inside the facet that starts at line {facet_line}"),
-        )),
+        _ => Err(
+            src.truncated_at(src.at_line(), format!("the file ends inside the facet that starts at line {facet_line}"))
+        ),
     }
 }
 
@@ -312,7 +312,10 @@ mod tests {
         for len in [Some(cut.len() as u64), None] {
             let e = read(cut, len, &limits()).unwrap_err();
             assert_eq!(e.kind(), "truncated");
-            assert!(matches!(e, IoError::TruncatedBinaryStl { n_triangles: 2, expected_bytes: 184, actual_bytes: 177 }), "{e}");
+            assert!(
+                matches!(e, IoError::TruncatedBinaryStl { n_triangles: 2, expected_bytes: 184, actual_bytes: 177 }),
+                "{e}"
+            );
             assert!(e.to_string().contains("184 bytes") && e.to_string().contains("177 bytes"));
         }
         let e = read(&bytes[..40], Some(40), &limits()).unwrap_err();
@@ -387,7 +390,10 @@ mod tests {
         let e = read(cut.as_bytes(), None, &limits()).unwrap_err();
         assert_eq!(e.kind(), "truncated");
         assert!(e.to_string().contains("line 9"), "{e}");
-        let two_vertices = ASCII.replace("   vertex 0 1 0\n  endloop\n endfacet\n facet normal 0 0 0", "  endloop\n endfacet\n facet normal 0 0 0");
+        let two_vertices = ASCII.replace(
+            "   vertex 0 1 0\n  endloop\n endfacet\n facet normal 0 0 0",
+            "  endloop\n endfacet\n facet normal 0 0 0",
+        );
         let e = read(two_vertices.as_bytes(), None, &limits()).unwrap_err();
         assert!(e.to_string().contains("2 vertices"), "{e}");
     }

@@ -88,9 +88,7 @@ mod tests {
         let n = u32::from_le_bytes(bytes[80..84].try_into().unwrap());
         let tris = bytes[84..]
             .chunks_exact(50)
-            .map(|c| {
-                std::array::from_fn(|k| f32::from_le_bytes(c[4 * k..4 * k + 4].try_into().unwrap()))
-            })
+            .map(|c| std::array::from_fn(|k| f32::from_le_bytes(c[4 * k..4 * k + 4].try_into().unwrap())))
             .collect();
         (n, tris)
     }
@@ -105,10 +103,7 @@ mod tests {
         let (n, tris) = decode(&v);
         assert_eq!(n, 4);
         // Face [0, 2, 1] of the unit tetrahedron lies in z = 0 with normal −z.
-        assert_eq!(
-            tris[0],
-            [0.0, 0.0, -1.0, 0.0, 0.0, 0.0, 0.0, 1.0, 0.0, 1.0, 0.0, 0.0]
-        );
+        assert_eq!(tris[0], [0.0, 0.0, -1.0, 0.0, 0.0, 0.0, 0.0, 1.0, 0.0, 1.0, 0.0, 0.0]);
         let s = 1.0 / 3f32.sqrt();
         assert!((tris[3][0] - s).abs() < 1e-6 && (tris[3][2] - s).abs() < 1e-6);
     }
@@ -118,16 +113,10 @@ mod tests {
         let mut mesh = fixtures::square(1);
         mesh.triangles[1][0] = VertexId(10);
         let mut v = Vec::new();
-        assert!(matches!(
-            write_stl_binary(&mut v, &mesh),
-            Err(WriteError::IndexOutOfRange { index: 10, .. })
-        ));
+        assert!(matches!(write_stl_binary(&mut v, &mesh), Err(WriteError::IndexOutOfRange { index: 10, .. })));
         let mut mesh = fixtures::square(1);
         mesh.positions[0].x = 1e300;
-        assert!(matches!(
-            write_stl_binary(&mut v, &mesh),
-            Err(WriteError::NonFiniteCoordinate { .. })
-        ));
+        assert!(matches!(write_stl_binary(&mut v, &mesh), Err(WriteError::NonFiniteCoordinate { .. })));
         assert!(v.is_empty());
     }
 }

@@ -43,11 +43,7 @@ pub(crate) fn push_f64s(buf: &mut Vec<u8>, xs: &[f64]) {
 /// allocation for reuse. Writers call this after each line so memory stays
 /// bounded however large the mesh.
 #[inline]
-pub(crate) fn flush_if_full(
-    w: &mut impl std::io::Write,
-    buf: &mut Vec<u8>,
-    limit: usize,
-) -> std::io::Result<()> {
+pub(crate) fn flush_if_full(w: &mut impl std::io::Write, buf: &mut Vec<u8>, limit: usize) -> std::io::Result<()> {
     if buf.len() >= limit {
         w.write_all(buf)?;
         buf.clear();
@@ -64,18 +60,7 @@ mod tests {
 
     #[test]
     fn floats_round_trip_through_text() {
-        for x in [
-            0.0,
-            -0.0,
-            1.0,
-            0.1,
-            1.0 / 3.0,
-            1e-7,
-            6.123234262925839e-17,
-            1.5e300,
-            -2.5e-310,
-            f64::MAX,
-        ] {
+        for x in [0.0, -0.0, 1.0, 0.1, 1.0 / 3.0, 1e-7, 6.123234262925839e-17, 1.5e300, -2.5e-310, f64::MAX] {
             let mut buf = Vec::new();
             push_f64(&mut buf, x);
             let s = std::str::from_utf8(&buf).unwrap();

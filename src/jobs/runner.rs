@@ -237,7 +237,11 @@ pub(crate) fn dispatch_loop(inner: Arc<Inner>) {
                     if head.crashes > 0 {
                         warn!(job = %rec.id, crashes = head.crashes, "running alone a job that crashed the server");
                     }
-                    let job = Arc::new(RunningJob::new(inner.config.job_timeout, head.memory_estimate_bytes, head.crashes > 0));
+                    let job = Arc::new(RunningJob::new(
+                        inner.config.job_timeout,
+                        head.memory_estimate_bytes,
+                        head.crashes > 0,
+                    ));
                     running.insert(rec.id, job.clone());
                     let inner2 = inner.clone();
                     inner.pool.spawn(move || run_job(&inner2, rec, &job));
@@ -479,10 +483,9 @@ fn ending_of(
             };
             Ending::Failed(e, live_seconds)
         }
-        (None, Ok(Err(ExecError::Cancelled))) => Ending::Failed(
-            JobError::new("internal-error", "the job stopped without being asked to"),
-            live_seconds,
-        ),
+        (None, Ok(Err(ExecError::Cancelled))) => {
+            Ending::Failed(JobError::new("internal-error", "the job stopped without being asked to"), live_seconds)
+        }
         (_, Ok(Ok(outcome))) => match artifacts_on_disk(out_dir, &outcome.artifacts) {
             Ok(artifacts) => {
                 let mut secs = outcome.stage_seconds.clone();
@@ -594,7 +597,9 @@ pub(crate) fn flush_unrecorded(inner: &Inner) {
             ref e => write_ending(inner, u.id, e).map(|_| ()),
         };
         match written {
-            Ok(()) => info!(job = %u.id, kind = %u.error.kind, "recorded the end of a job that could not be stored before"),
+            Ok(()) => {
+                info!(job = %u.id, kind = %u.error.kind, "recorded the end of a job that could not be stored before")
+            }
             Err(_) => keep.push(u),
         }
     }

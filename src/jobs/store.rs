@@ -505,7 +505,8 @@ impl Store {
         let mut rec = Recovery::default();
         {
             let mut stmt = tx.prepare("SELECT id, attempts, crashes FROM jobs WHERE state = 'running' ORDER BY seq")?;
-            let rows = stmt.query_map([], |r| Ok((r.get::<_, String>(0)?, r.get::<_, i64>(1)?, r.get::<_, i64>(2)?)))?;
+            let rows =
+                stmt.query_map([], |r| Ok((r.get::<_, String>(0)?, r.get::<_, i64>(1)?, r.get::<_, i64>(2)?)))?;
             for row in rows {
                 let (id, attempts, crashes) = row?;
                 let crashes = crashes + 1;

@@ -16,11 +16,7 @@ pub struct Triplets {
 impl Triplets {
     /// Empty `n_rows × n_cols` assembly.
     pub fn new(n_rows: usize, n_cols: usize) -> Self {
-        Self {
-            n_rows,
-            n_cols,
-            ..Default::default()
-        }
+        Self { n_rows, n_cols, ..Default::default() }
     }
 
     /// Empty assembly with room for `capacity` entries.
@@ -86,20 +82,11 @@ impl Triplets {
     /// [`LinalgError::IndexOutOfRange`] for an entry outside the matrix.
     pub fn pattern(&self) -> Result<Pattern, LinalgError> {
         self.check_indices()?;
-        let idx: Vec<Pair<usize, usize>> = self
-            .rows
-            .iter()
-            .zip(&self.cols)
-            .map(|(&r, &c)| Pair::new(r as usize, c as usize))
-            .collect();
-        let (symbolic, argsort) =
-            SymbolicSparseColMat::try_new_from_indices(self.n_rows, self.n_cols, &idx)
-                .map_err(|e| LinalgError::Internal(format!("{e:?}")))?;
-        Ok(Pattern {
-            symbolic,
-            argsort,
-            n_triplets: self.len(),
-        })
+        let idx: Vec<Pair<usize, usize>> =
+            self.rows.iter().zip(&self.cols).map(|(&r, &c)| Pair::new(r as usize, c as usize)).collect();
+        let (symbolic, argsort) = SymbolicSparseColMat::try_new_from_indices(self.n_rows, self.n_cols, &idx)
+            .map_err(|e| LinalgError::Internal(format!("{e:?}")))?;
+        Ok(Pattern { symbolic, argsort, n_triplets: self.len() })
     }
 
     /// Build the compressed matrix (duplicates summed).
@@ -135,9 +122,7 @@ impl Triplets {
             let seg = &mut entries[start[j]..start[j + 1]];
             seg.sort_unstable_by_key(|e| e.0);
             for &(r, v) in seg.iter() {
-                if row_idx.len() > col_ptr[j]
-                    && *row_idx.last().unwrap_or(&usize::MAX) == r as usize
-                {
+                if row_idx.len() > col_ptr[j] && *row_idx.last().unwrap_or(&usize::MAX) == r as usize {
                     *val.last_mut().expect("an entry was pushed") += v;
                 } else {
                     row_idx.push(r as usize);
@@ -146,8 +131,7 @@ impl Triplets {
             }
             col_ptr.push(row_idx.len());
         }
-        let symbolic =
-            SymbolicSparseColMat::new_checked(self.n_rows, self.n_cols, col_ptr, None, row_idx);
+        let symbolic = SymbolicSparseColMat::new_checked(self.n_rows, self.n_cols, col_ptr, None, row_idx);
         Ok(SparseMatrix::new(symbolic, val))
     }
 }
@@ -169,10 +153,7 @@ impl Pattern {
     /// [`LinalgError::PatternMismatch`] when `values` has the wrong length.
     pub fn matrix(&self, values: &[f64]) -> Result<SparseMatrix, LinalgError> {
         if values.len() != self.n_triplets {
-            return Err(LinalgError::PatternMismatch {
-                expected: self.n_triplets,
-                got: values.len(),
-            });
+            return Err(LinalgError::PatternMismatch { expected: self.n_triplets, got: values.len() });
         }
         SparseMatrix::new_from_argsort(self.symbolic.clone(), &self.argsort, values)
             .map_err(|e| LinalgError::Internal(format!("{e:?}")))
@@ -188,9 +169,7 @@ mod tests {
         let mut t = Triplets::new(7, 5);
         let mut x = 12345u64;
         for _ in 0..200 {
-            x = x
-                .wrapping_mul(6364136223846793005)
-                .wrapping_add(1442695040888963407);
+            x = x.wrapping_mul(6364136223846793005).wrapping_add(1442695040888963407);
             let (r, c) = ((x >> 33) as usize % 7, (x >> 45) as usize % 5);
             t.push(r, c, ((x >> 20) % 1000) as f64 / 7.0);
         }
@@ -212,22 +191,13 @@ mod tests {
         t.push(1, 0, -1.0);
         let m = t.to_matrix().unwrap();
         let d = m.to_dense();
-        assert_eq!(
-            (d[(0, 0)], d[(1, 1)], d[(1, 0)], d[(0, 1)]),
-            (4.0, 2.0, -1.0, 0.0)
-        );
+        assert_eq!((d[(0, 0)], d[(1, 1)], d[(1, 0)], d[(0, 1)]), (4.0, 2.0, -1.0, 0.0));
         let p = t.pattern().unwrap();
         let m2 = p.matrix(&[1.0, 1.0, 1.0, 1.0]).unwrap().to_dense();
         assert_eq!(m2[(0, 0)], 2.0);
-        assert!(matches!(
-            p.matrix(&[1.0]),
-            Err(LinalgError::PatternMismatch { .. })
-        ));
+        assert!(matches!(p.matrix(&[1.0]), Err(LinalgError::PatternMismatch { .. })));
         let mut bad = Triplets::new(2, 2);
         bad.push(2, 0, 1.0);
-        assert!(matches!(
-            bad.to_matrix(),
-            Err(LinalgError::IndexOutOfRange { row: 2, .. })
-        ));
+        assert!(matches!(bad.to_matrix(), Err(LinalgError::IndexOutOfRange { row: 2, .. })));
     }
 }

@@ -7,12 +7,7 @@ use thiserror::Error;
 pub enum LinalgError {
     /// A triplet names a row or column outside the matrix.
     #[error("matrix entry ({row}, {col}) outside a {n_rows}×{n_cols} matrix")]
-    IndexOutOfRange {
-        row: usize,
-        col: usize,
-        n_rows: usize,
-        n_cols: usize,
-    },
+    IndexOutOfRange { row: usize, col: usize, n_rows: usize, n_cols: usize },
     /// The factorization met a zero pivot or a non-positive diagonal.
     #[error("the {kind} factorization failed: the matrix is singular or not positive definite")]
     Singular { kind: &'static str },

@@ -84,11 +84,7 @@ pub fn bicgstab_block(
     let r_hat = r.clone();
     let mut st: Vec<ColumnState> = (0..k)
         .map(|c| {
-            let res = if b_norm[c] > 0.0 {
-                dot(&r[c], &r[c]).sqrt() / b_norm[c]
-            } else {
-                0.0
-            };
+            let res = if b_norm[c] > 0.0 { dot(&r[c], &r[c]).sqrt() / b_norm[c] } else { 0.0 };
             ColumnState {
                 rho: 1.0,
                 alpha: 1.0,
@@ -100,12 +96,8 @@ pub fn bicgstab_block(
             }
         })
         .collect();
-    let (mut v, mut p, mut y, mut t) = (
-        vec![vec![0.0; n]; k],
-        vec![vec![0.0; n]; k],
-        vec![vec![0.0; n]; k],
-        vec![vec![0.0; n]; k],
-    );
+    let (mut v, mut p, mut y, mut t) =
+        (vec![vec![0.0; n]; k], vec![vec![0.0; n]; k], vec![vec![0.0; n]; k], vec![vec![0.0; n]; k]);
     for _ in 0..max_iter {
         if st.iter().all(|s| !s.active) {
             break;
@@ -164,11 +156,7 @@ pub fn bicgstab_block(
             }
             sparse_matvec(a, &y[c], &mut t[c]);
             let tt = dot(&t[c], &t[c]);
-            s.omega = if tt > 0.0 {
-                dot(&t[c], &r[c]) / tt
-            } else {
-                0.0
-            };
+            s.omega = if tt > 0.0 { dot(&t[c], &r[c]) / tt } else { 0.0 };
             if s.omega == 0.0 || !s.omega.is_finite() {
                 s.stop(true);
                 continue;
@@ -233,23 +221,12 @@ mod tests {
         let chol = CholeskySolver::new(&s.to_matrix().unwrap()).unwrap();
         let b: Vec<f64> = (0..n).map(|i| ((i * 7) % 13) as f64 - 6.0).collect();
         let mut x = vec![0.0; n];
-        let rep = bicgstab(
-            &a,
-            &|r: &mut [f64]| chol.solve_in_place(r),
-            &b,
-            &mut x,
-            1e-12,
-            100,
-        );
+        let rep = bicgstab(&a, &|r: &mut [f64]| chol.solve_in_place(r), &b, &mut x, 1e-12, 100);
         assert!(rep.converged, "{rep:?}");
         assert!(rep.iterations < 60, "{rep:?}");
         let mut ax = vec![0.0; n];
         sparse_matvec(&a, &x, &mut ax);
-        let err = ax
-            .iter()
-            .zip(&b)
-            .map(|(p, q)| (p - q).abs())
-            .fold(0.0, f64::max);
+        let err = ax.iter().zip(&b).map(|(p, q)| (p - q).abs()).fold(0.0, f64::max);
         assert!(err < 1e-9);
     }
 }

@@ -31,10 +31,7 @@ pub static METIS_LOCK: std::sync::Mutex<()> = std::sync::Mutex::new(());
 ///
 /// # Errors
 /// [`LinalgError::Internal`] when METIS fails or the size is not a multiple of `block`.
-pub fn nested_dissection(
-    a: SymbolicSparseColMatRef<'_, usize>,
-    block: usize,
-) -> Result<Vec<usize>, LinalgError> {
+pub fn nested_dissection(a: SymbolicSparseColMatRef<'_, usize>, block: usize) -> Result<Vec<usize>, LinalgError> {
     let n = a.nrows();
     if block == 0 || n % block != 0 {
         return Err(LinalgError::Internal(format!(
@@ -77,9 +74,7 @@ pub fn nested_dissection(
     let mut perm = vec![0i32; nb];
     let mut iperm = vec![0i32; nb];
     let status = {
-        let _guard = METIS_LOCK
-            .lock()
-            .unwrap_or_else(|poisoned| poisoned.into_inner());
+        let _guard = METIS_LOCK.lock().unwrap_or_else(|poisoned| poisoned.into_inner());
         let mut nvtxs = nb as i32;
         let mut options = [0i32; metis_sys::METIS_NOPTIONS as usize];
         let mut xadj = xadj;
@@ -100,17 +95,13 @@ pub fn nested_dissection(
         }
     };
     if status != metis_sys::rstatus_et_METIS_OK {
-        return Err(LinalgError::Internal(format!(
-            "METIS_NodeND failed with status {status}"
-        )));
+        return Err(LinalgError::Internal(format!("METIS_NodeND failed with status {status}")));
     }
     let mut out = Vec::with_capacity(n);
     for &p in &perm {
         let p = p as usize;
         if p >= nb {
-            return Err(LinalgError::Internal(
-                "METIS_NodeND returned an invalid permutation".into(),
-            ));
+            return Err(LinalgError::Internal("METIS_NodeND returned an invalid permutation".into()));
         }
         out.extend(p * block..(p + 1) * block);
     }

@@ -20,10 +20,8 @@ impl LuSolver {
     /// [`LinalgError::Singular`] when a pivot vanishes.
     pub fn new(a: &SparseMatrix) -> Result<Self, LinalgError> {
         super::use_sequential_kernels();
-        let symbolic = SymbolicLu::try_new(a.symbolic())
-            .map_err(|e| LinalgError::Internal(format!("{e:?}")))?;
-        let lu = Lu::try_new_with_symbolic(symbolic, a.as_ref())
-            .map_err(|_| LinalgError::Singular { kind: "LU" })?;
+        let symbolic = SymbolicLu::try_new(a.symbolic()).map_err(|e| LinalgError::Internal(format!("{e:?}")))?;
+        let lu = Lu::try_new_with_symbolic(symbolic, a.as_ref()).map_err(|_| LinalgError::Singular { kind: "LU" })?;
         Ok(Self { lu, n: a.nrows() })
     }
 
@@ -53,15 +51,11 @@ impl CholeskySolver {
     /// [`LinalgError::Singular`] when `a` is not positive definite.
     pub fn new(a: &SparseMatrix) -> Result<Self, LinalgError> {
         super::use_sequential_kernels();
-        let symbolic = SymbolicLlt::try_new(a.symbolic(), Side::Lower)
-            .map_err(|e| LinalgError::Internal(format!("{e:?}")))?;
+        let symbolic =
+            SymbolicLlt::try_new(a.symbolic(), Side::Lower).map_err(|e| LinalgError::Internal(format!("{e:?}")))?;
         let llt = Llt::try_new_with_symbolic(symbolic.clone(), a.as_ref(), Side::Lower)
             .map_err(|_| LinalgError::Singular { kind: "Cholesky" })?;
-        Ok(Self {
-            symbolic,
-            llt,
-            n: a.nrows(),
-        })
+        Ok(Self { symbolic, llt, n: a.nrows() })
     }
 
     /// Refactor a matrix with the same sparsity pattern, reusing the analysis.
@@ -70,10 +64,7 @@ impl CholeskySolver {
     /// [`LinalgError::Singular`] when `a` is not positive definite.
     pub fn refactor(&mut self, a: &SparseMatrix) -> Result<(), LinalgError> {
         if a.nrows() != self.n {
-            return Err(LinalgError::DimensionMismatch {
-                expected: self.n,
-                got: a.nrows(),
-            });
+            return Err(LinalgError::DimensionMismatch { expected: self.n, got: a.nrows() });
         }
         self.llt = Llt::try_new_with_symbolic(self.symbolic.clone(), a.as_ref(), Side::Lower)
             .map_err(|_| LinalgError::Singular { kind: "Cholesky" })?;
@@ -95,8 +86,7 @@ impl CholeskySolver {
     pub fn solve_in_place(&self, x: &mut [f64]) {
         assert_eq!(x.len(), self.n, "right-hand side length");
         let n = self.n;
-        self.llt
-            .solve_in_place(faer::MatMut::from_column_major_slice_mut(x, n, 1));
+        self.llt.solve_in_place(faer::MatMut::from_column_major_slice_mut(x, n, 1));
     }
 
     /// Size of the factored matrix.
@@ -106,16 +96,9 @@ impl CholeskySolver {
 }
 
 /// Copy columns into one dense block, solve once, copy back.
-fn solve_columns_with(
-    solver: &impl Solve<f64>,
-    n: usize,
-    rhs: &mut [Vec<f64>],
-) -> Result<(), LinalgError> {
+fn solve_columns_with(solver: &impl Solve<f64>, n: usize, rhs: &mut [Vec<f64>]) -> Result<(), LinalgError> {
     if let Some(bad) = rhs.iter().find(|c| c.len() != n) {
-        return Err(LinalgError::DimensionMismatch {
-            expected: n,
-            got: bad.len(),
-        });
+        return Err(LinalgError::DimensionMismatch { expected: n, got: bad.len() });
     }
     let mut block = Mat::<f64>::from_fn(n, rhs.len(), |i, j| rhs[j][i]);
     solver.solve_in_place(block.as_mut());
@@ -165,8 +148,7 @@ mod tests {
         let t = laplacian(40, 0.0);
         let mut s = CholeskySolver::new(&t.to_matrix().unwrap()).unwrap();
         let t2 = laplacian(40, 1.0);
-        s.refactor(&t2.pattern().unwrap().matrix(t2.values()).unwrap())
-            .unwrap();
+        s.refactor(&t2.pattern().unwrap().matrix(t2.values()).unwrap()).unwrap();
         let mut cols = vec![vec![1.0; 40]];
         s.solve_columns(&mut cols).unwrap();
         // Residual of the shifted system.
@@ -176,10 +158,7 @@ mod tests {
         let mut neg = Triplets::new(2, 2);
         neg.push(0, 0, -1.0);
         neg.push(1, 1, 1.0);
-        assert!(matches!(
-            CholeskySolver::new(&neg.to_matrix().unwrap()),
-            Err(LinalgError::Singular { .. })
-        ));
+        assert!(matches!(CholeskySolver::new(&neg.to_matrix().unwrap()), Err(LinalgError::Singular { .. })));
         let mut wrong = vec![vec![1.0; 3]];
         assert!(s.solve_columns(&mut wrong).is_err());
     }

@@ -23,12 +23,12 @@
 use super::{LinalgError, SparseMatrix};
 use faer::dyn_stack::{MemBuffer, MemStack};
 use faer::linalg::cholesky::llt::factor::LltRegularization;
+use faer::sparse::SymbolicSparseColMat;
 use faer::sparse::linalg::SupernodalThreshold;
 use faer::sparse::linalg::cholesky::{
     CholeskySymbolicParams, LltRef, SymbolicCholesky, SymbolicCholeskyRaw, SymmetricOrdering,
     factorize_symbolic_cholesky,
 };
-use faer::sparse::SymbolicSparseColMat;
 use faer::{Conj, MatMut, Side};
 
 /// Fill-reducing ordering of a [`SupernodalCholesky`].
@@ -95,9 +95,7 @@ impl SupernodalCholesky {
         // The fill-reducing ordering (new → old) ...
         let fwd = match ordering {
             FillOrdering::Amd => amd_ordering(a)?,
-            FillOrdering::NestedDissection { block } => {
-                super::ordering::nested_dissection(a.symbolic(), block)?
-            }
+            FillOrdering::NestedDissection { block } => super::ordering::nested_dissection(a.symbolic(), block)?,
         };
         let fwd = (!fwd.iter().enumerate().all(|(i, &p)| i == p)).then_some(fwd);
         // ... is applied once to the pattern, and the factorization analyses
@@ -108,13 +106,8 @@ impl SupernodalCholesky {
         let (permuted, slot) = permuted_pattern(a, fwd.as_deref(), Side::Lower)?;
         // (faer's analysis reads the upper triangle when the ordering is the identity.)
         let (upper, _) = permuted_pattern(a, fwd.as_deref(), Side::Upper)?;
-        let symbolic = factorize_symbolic_cholesky(
-            upper.as_ref(),
-            Side::Upper,
-            SymmetricOrdering::Identity,
-            params(),
-        )
-        .map_err(internal)?;
+        let symbolic = factorize_symbolic_cholesky(upper.as_ref(), Side::Upper, SymmetricOrdering::Identity, params())
+            .map_err(internal)?;
         let par = faer::Par::Seq;
         let req = symbolic
             .factorize_numeric_llt_scratch::<f64>(par, Default::default())
@@ -161,10 +154,7 @@ impl SupernodalCholesky {
     /// [`LinalgError::DimensionMismatch`] for a matrix of another size.
     pub fn factor(&mut self, a: &SparseMatrix) -> Result<(), LinalgError> {
         if a.nrows() != self.symbolic.nrows() {
-            return Err(LinalgError::DimensionMismatch {
-                expected: self.symbolic.nrows(),
-                got: a.nrows(),
-            });
+            return Err(LinalgError::DimensionMismatch { expected: self.symbolic.nrows(), got: a.nrows() });
         }
         if a.val().len() != self.slot.len() {
             return Err(LinalgError::Internal(format!(
@@ -204,10 +194,7 @@ impl SupernodalCholesky {
     pub fn solve_in_place(&mut self, b: &mut [f64]) -> Result<(), LinalgError> {
         let n = self.symbolic.nrows();
         if b.len() != n {
-            return Err(LinalgError::DimensionMismatch {
-                expected: n,
-                got: b.len(),
-            });
+            return Err(LinalgError::DimensionMismatch { expected: n, got: b.len() });
         }
         if !self.factored {
             return Err(LinalgError::Singular { kind: "Cholesky" });
@@ -293,10 +280,8 @@ impl SupernodalCholesky {
 fn amd_ordering(a: &SparseMatrix) -> Result<Vec<usize>, LinalgError> {
     let n = a.nrows();
     let nnz = a.symbolic().compute_nnz();
-    let mut work = MemBuffer::try_new(faer::sparse::linalg::amd::order_maybe_unsorted_scratch::<
-        usize,
-    >(n, nnz))
-    .map_err(|e| LinalgError::Internal(format!("{e:?}")))?;
+    let mut work = MemBuffer::try_new(faer::sparse::linalg::amd::order_maybe_unsorted_scratch::<usize>(n, nnz))
+        .map_err(|e| LinalgError::Internal(format!("{e:?}")))?;
     let (mut fwd, mut inv) = (vec![0usize; n], vec![0usize; n]);
     faer::sparse::linalg::amd::order_maybe_unsorted(
         &mut fwd,
@@ -326,9 +311,7 @@ fn permuted_pattern(
     let (cp, ri) = (a.symbolic().col_ptr(), a.symbolic().row_idx());
     let nnz = ri.len();
     if nnz >= NO_SLOT as usize || a.symbolic().col_nnz().is_some() || cp[n] != nnz {
-        return Err(LinalgError::Internal(
-            "matrix too large or not compressed for the supernodal Cholesky".into(),
-        ));
+        return Err(LinalgError::Internal("matrix too large or not compressed for the supernodal Cholesky".into()));
     }
     // (new column, new row, entry of A) of the lower entries, bucketed by column.
     let mut count = vec![0usize; n + 1];
@@ -432,15 +415,10 @@ mod tests {
             t.to_matrix().unwrap()
         };
         let g = grid(40);
-        for ord in [
-            FillOrdering::Amd,
-            FillOrdering::NestedDissection { block: 1 },
-        ] {
+        for ord in [FillOrdering::Amd, FillOrdering::NestedDissection { block: 1 }] {
             let mut c = SupernodalCholesky::analyze_with(&g, ord).unwrap();
             c.factor(&g).unwrap();
-            let b: Vec<f64> = (0..g.nrows())
-                .map(|i| ((i * 7) % 13) as f64 - 6.0)
-                .collect();
+            let b: Vec<f64> = (0..g.nrows()).map(|i| ((i * 7) % 13) as f64 - 6.0).collect();
             let mut x = b.clone();
             c.solve_in_place(&mut x).unwrap();
             // faer's solve works in the factor's ordering.
@@ -454,11 +432,7 @@ mod tests {
             );
             let mut y = vec![0.0; g.nrows()];
             fwd.iter().zip(&yp).for_each(|(&f, &v)| y[f] = v);
-            let err = x
-                .iter()
-                .zip(&y)
-                .map(|(a, b)| (a - b).abs())
-                .fold(0.0, f64::max);
+            let err = x.iter().zip(&y).map(|(a, b)| (a - b).abs()).fold(0.0, f64::max);
             assert!(err < 1e-12, "{ord:?}: {err}");
             // Two interleaved columns give the same as one at a time.
             let mut both: Vec<[f64; 2]> = b.iter().map(|&v| [v, 2.0 * v]).collect();

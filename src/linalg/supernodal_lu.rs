@@ -40,8 +40,7 @@ use faer::prelude::{IntoConst, Reborrow, ReborrowMut};
 use faer::sparse::linalg::SupernodalThreshold;
 use faer::sparse::linalg::cholesky::supernodal::SymbolicSupernodalCholesky;
 use faer::sparse::linalg::cholesky::{
-    CholeskySymbolicParams, SymbolicCholesky, SymbolicCholeskyRaw, SymmetricOrdering,
-    factorize_symbolic_cholesky,
+    CholeskySymbolicParams, SymbolicCholesky, SymbolicCholeskyRaw, SymmetricOrdering, factorize_symbolic_cholesky,
 };
 use faer::{Accum, MatMut, MatRef, Par};
 
@@ -67,10 +66,7 @@ pub struct SupernodalLu<T: LuScalar = f64> {
 
 impl<T: LuScalar> std::fmt::Debug for SupernodalLu<T> {
     fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
-        f.debug_struct("SupernodalLu")
-            .field("n", &self.symbolic.nrows())
-            .field("nnz", &self.nnz())
-            .finish()
+        f.debug_struct("SupernodalLu").field("n", &self.symbolic.nrows()).field("nnz", &self.nnz()).finish()
     }
 }
 
@@ -83,10 +79,7 @@ impl<T: LuScalar> SupernodalLu<T> {
     /// [`LinalgError::DimensionMismatch`] for a non-square matrix.
     pub fn factor(a: &SparseMatrix) -> Result<Self, LinalgError> {
         if a.nrows() != a.ncols() {
-            return Err(LinalgError::DimensionMismatch {
-                expected: a.nrows(),
-                got: a.ncols(),
-            });
+            return Err(LinalgError::DimensionMismatch { expected: a.nrows(), got: a.ncols() });
         }
         let symbolic = supernodal_amd_analysis(&symmetric_lower_pattern(a)?)?;
         let SymbolicCholeskyRaw::Supernodal(sn) = symbolic.raw() else {
@@ -139,10 +132,7 @@ impl<T: LuScalar> SupernodalLu<T> {
         let max_diag = (0..a.ncols())
             .flat_map(|j| {
                 let (rows, vals) = (a.row_idx_of_col_raw(j), a.val_of_col(j));
-                rows.iter()
-                    .zip(vals)
-                    .filter(move |(i, _)| **i == j)
-                    .map(|(_, v)| v.abs())
+                rows.iter().zip(vals).filter(move |(i, _)| **i == j).map(|(_, v)| v.abs())
             })
             .fold(0.0f64, f64::max);
         let tiny = T::from_f64(PIVOT_TOLERANCE * max_diag.max(f64::MIN_POSITIVE));
@@ -200,11 +190,7 @@ impl<T: LuScalar> SupernodalLu<T> {
         }
         let r = pattern.partition_point(|&x| x < hi);
         debug_assert_eq!(pattern[r], hi, "entry outside the symbolic structure");
-        if lower {
-            &mut self.lu[base + c * ld + nc + r]
-        } else {
-            &mut self.ut[self.ut_ptr[t] + c * pattern.len() + r]
-        }
+        if lower { &mut self.lu[base + c * ld + nc + r] } else { &mut self.ut[self.ut_ptr[t] + c * pattern.len() + r] }
     }
 
     /// Factor supernode `s` in place (its Schur updates from earlier
@@ -221,13 +207,7 @@ impl<T: LuScalar> SupernodalLu<T> {
 
     /// Subtract the Schur update `L[p, s] U[s, p]` of supernode `s` from the
     /// supernodes owning the rows and columns of `p`.
-    fn push_schur_update(
-        &mut self,
-        s: usize,
-        owner: &[u32],
-        schur: &mut Vec<T>,
-        loc: &mut Vec<usize>,
-    ) {
+    fn push_schur_update(&mut self, s: usize, owner: &[u32], schur: &mut Vec<T>, loc: &mut Vec<usize>) {
         let sn = structure_of(&self.symbolic);
         let nc = sn.supernode_end()[s] - sn.supernode_begin()[s];
         let p = sn.supernode(s).pattern();
@@ -237,14 +217,7 @@ impl<T: LuScalar> SupernodalLu<T> {
         }
         let ld = nc + np;
         let vp = sn.col_ptr_for_val();
-        schur_product(
-            &self.lu[vp[s] + nc..vp[s + 1]],
-            ld,
-            &self.ut[self.ut_ptr[s]..self.ut_ptr[s + 1]],
-            np,
-            nc,
-            schur,
-        );
+        schur_product(&self.lu[vp[s] + nc..vp[s + 1]], ld, &self.ut[self.ut_ptr[s]..self.ut_ptr[s + 1]], np, nc, schur);
         // The rows of p owned by one supernode t are consecutive.
         let mut g0 = 0;
         while g0 < np {
@@ -271,14 +244,10 @@ impl<T: LuScalar> SupernodalLu<T> {
     pub fn solve_interleaved<const K: usize>(&self, x: &mut [[f64; K]]) -> Result<(), LinalgError> {
         let n = self.symbolic.nrows();
         if x.len() != n {
-            return Err(LinalgError::DimensionMismatch {
-                expected: n,
-                got: x.len(),
-            });
+            return Err(LinalgError::DimensionMismatch { expected: n, got: x.len() });
         }
         if let Some(lu) = &self.fallback {
-            let mut cols: Vec<Vec<f64>> =
-                (0..K).map(|k| x.iter().map(|v| v[k]).collect()).collect();
+            let mut cols: Vec<Vec<f64>> = (0..K).map(|k| x.iter().map(|v| v[k]).collect()).collect();
             lu.solve_columns(&mut cols)?;
             for (i, xi) in x.iter_mut().enumerate() {
                 for k in 0..K {
@@ -454,14 +423,7 @@ struct Target<'a, T> {
 /// Local rows, in the receiving supernode (its `nc` columns from `c0`, then
 /// its `pattern`), of `rows`, whose first `n_own` are among its columns and
 /// the rest in its pattern (both sorted): a merge, no search.
-fn local_rows(
-    rows: &[usize],
-    n_own: usize,
-    c0: usize,
-    nc: usize,
-    pattern: &[usize],
-    loc: &mut Vec<usize>,
-) {
+fn local_rows(rows: &[usize], n_own: usize, c0: usize, nc: usize, pattern: &[usize], loc: &mut Vec<usize>) {
     loc.clear();
     loc.extend(rows[..n_own].iter().map(|&r| r - c0));
     let mut k = 0;
@@ -540,28 +502,14 @@ fn dense_lu_no_pivoting<T: LuScalar>(
             let (top, a22) = right.split_at_row_mut(k1);
             let mut u12 = top.submatrix_mut(k0, 0, bw, nc - k1);
             solve_unit_lower_triangular_in_place(l11, u12.rb_mut(), Par::Seq);
-            matmul(
-                a22,
-                Accum::Add,
-                left.submatrix(k1, k0, ld - k1, bw),
-                u12.rb(),
-                T::from_f64(-1.0),
-                Par::Seq,
-            );
+            matmul(a22, Accum::Add, left.submatrix(k1, k0, ld - k1, bw), u12.rb(), T::from_f64(-1.0), Par::Seq);
             if np > 0 {
                 let ym = MatMut::from_column_major_slice_mut(y, np, nc);
                 let (yl, yr) = ym.split_at_col_mut(k1);
                 // The panel's rows of U are final ([`eliminate_panel`]).
                 let yb = yl.into_const().subcols(k0, bw);
                 let l_rows = left.submatrix(k1, k0, nc - k1, bw);
-                matmul(
-                    yr,
-                    Accum::Add,
-                    yb,
-                    l_rows.transpose(),
-                    T::from_f64(-1.0),
-                    Par::Seq,
-                );
+                matmul(yr, Accum::Add, yb, l_rows.transpose(), T::from_f64(-1.0), Par::Seq);
             }
         }
         k0 = k1;
@@ -583,9 +531,7 @@ fn eliminate_panel<T: LuScalar>(
     for k in k0..k1 {
         let pivot = m[k * ld + k];
         if !(pivot.abs_value() > tiny) {
-            return Err(LinalgError::Singular {
-                kind: "LU without pivoting",
-            });
+            return Err(LinalgError::Singular { kind: "LU without pivoting" });
         }
         let inv = T::one() / pivot;
         // Column k of L (diagonal block and off-diagonal rows) ...
@@ -628,14 +574,7 @@ fn structure_of(symbolic: &SymbolicCholesky<usize>) -> &SymbolicSupernodalCholes
 /// is `np × nc` with column stride `ld` and `U_p` (the transposed
 /// off-diagonal rows of `U`) is `np × nc` column-major: `schur[a + b np] =
 /// Σ_k L_p[a, k] U_p[b, k]`, the update of entry `(p[a], p[b])`.
-fn schur_product<T: LuScalar>(
-    l: &[T],
-    ld: usize,
-    u: &[T],
-    np: usize,
-    nc: usize,
-    schur: &mut Vec<T>,
-) {
+fn schur_product<T: LuScalar>(l: &[T], ld: usize, u: &[T], np: usize, nc: usize, schur: &mut Vec<T>) {
     schur.clear();
     schur.resize(np * np, T::zero());
     if np * np * nc < SMALL_PRODUCT {
@@ -727,28 +666,18 @@ mod tests {
             if m == 90 {
                 // The blocked path (several panels) and faer's Schur product run.
                 let sn = lu.structure();
-                let widest = (0..sn.n_supernodes())
-                    .map(|s| sn.supernode_end()[s] - sn.supernode_begin()[s])
-                    .max()
-                    .unwrap();
+                let widest =
+                    (0..sn.n_supernodes()).map(|s| sn.supernode_end()[s] - sn.supernode_begin()[s]).max().unwrap();
                 assert!(widest > 2 * PANEL, "widest supernode {widest}");
             }
-            let b: Vec<[f64; 2]> = (0..n)
-                .map(|i| [((i * 7) % 13) as f64 - 6.0, (i % 3) as f64])
-                .collect();
+            let b: Vec<[f64; 2]> = (0..n).map(|i| [((i * 7) % 13) as f64 - 6.0, (i % 3) as f64]).collect();
             let mut x = b.clone();
             lu.solve_interleaved(&mut x).unwrap();
-            let mut cols = vec![
-                b.iter().map(|v| v[0]).collect::<Vec<_>>(),
-                b.iter().map(|v| v[1]).collect(),
-            ];
+            let mut cols = vec![b.iter().map(|v| v[0]).collect::<Vec<_>>(), b.iter().map(|v| v[1]).collect()];
             LuSolver::new(&a).unwrap().solve_columns(&mut cols).unwrap();
             for (i, xi) in x.iter().enumerate() {
                 for k in 0..2 {
-                    assert!(
-                        (xi[k] - cols[k][i]).abs() < 1e-10 * (1.0 + cols[k][i].abs()),
-                        "m {m} row {i}"
-                    );
+                    assert!((xi[k] - cols[k][i]).abs() < 1e-10 * (1.0 + cols[k][i].abs()), "m {m} row {i}");
                 }
             }
             // Residual of the original system.
@@ -760,10 +689,7 @@ mod tests {
                     }
                 }
             }
-            assert!(
-                r.iter()
-                    .all(|ri| ri[0].abs() < 1e-10 && ri[1].abs() < 1e-10)
-            );
+            assert!(r.iter().all(|ri| ri[0].abs() < 1e-10 && ri[1].abs() < 1e-10));
         }
     }
 
@@ -771,28 +697,16 @@ mod tests {
     fn single_precision_factor_is_a_close_inverse() {
         let a = grid_mvc(60);
         let n = a.nrows();
-        let (lo, hi) = (
-            SupernodalLu::<f32>::factor(&a).unwrap(),
-            SupernodalLu::<f64>::factor(&a).unwrap(),
-        );
+        let (lo, hi) = (SupernodalLu::<f32>::factor(&a).unwrap(), SupernodalLu::<f64>::factor(&a).unwrap());
         assert!(lo.lu.len() == hi.lu.len() && lo.ut.len() == hi.ut.len());
         let b: Vec<[f64; 1]> = (0..n).map(|i| [((i * 5) % 11) as f64 - 5.0]).collect();
         let (mut x, mut y) = (b.clone(), b.clone());
         lo.solve_interleaved(&mut x).unwrap();
         hi.solve_interleaved(&mut y).unwrap();
         let norm = y.iter().map(|v| v[0] * v[0]).sum::<f64>().sqrt();
-        let err = x
-            .iter()
-            .zip(&y)
-            .map(|(p, q)| (p[0] - q[0]).powi(2))
-            .sum::<f64>()
-            .sqrt();
+        let err = x.iter().zip(&y).map(|(p, q)| (p[0] - q[0]).powi(2)).sum::<f64>().sqrt();
         // Single precision, condition number of a 3600-unknown mesh matrix.
-        assert!(
-            err < 1e-4 * norm && err > 0.0,
-            "relative error {}",
-            err / norm
-        );
+        assert!(err < 1e-4 * norm && err > 0.0, "relative error {}", err / norm);
     }
 
     #[test]
@@ -803,13 +717,7 @@ mod tests {
         t.push(1, 0, 1.0);
         t.push(0, 0, 0.0);
         let a = t.to_matrix().unwrap();
-        assert!(matches!(
-            SupernodalLu::<f64>::factor(&a),
-            Err(LinalgError::Singular { .. })
-        ));
-        assert!(matches!(
-            SupernodalLu::<f32>::factor(&a),
-            Err(LinalgError::Singular { .. })
-        ));
+        assert!(matches!(SupernodalLu::<f64>::factor(&a), Err(LinalgError::Singular { .. })));
+        assert!(matches!(SupernodalLu::<f32>::factor(&a), Err(LinalgError::Singular { .. })));
     }
 }

@@ -24,11 +24,7 @@ impl BoundaryLoop {
     /// Length of the loop in 3D.
     pub fn length(&self, mesh: &TriMesh) -> f64 {
         let n = self.vertices.len();
-        (0..n)
-            .map(|i| {
-                (mesh.position(self.vertices[(i + 1) % n]) - mesh.position(self.vertices[i])).norm()
-            })
-            .sum()
+        (0..n).map(|i| (mesh.position(self.vertices[(i + 1) % n]) - mesh.position(self.vertices[i])).norm()).sum()
     }
 }
 
@@ -40,14 +36,9 @@ pub fn boundary_loops(mesh: &TriMesh, topo: &Topology) -> Vec<BoundaryLoop> {
 /// Loops formed by the edges selected by `is_cut` (each selected edge must
 /// have exactly one triangle on the side being bounded, e.g. patch borders).
 /// Edge direction is taken from the (first) triangle owning it.
-pub fn boundary_loops_where(
-    mesh: &TriMesh,
-    topo: &Topology,
-    is_cut: impl Fn(EdgeId) -> bool,
-) -> Vec<BoundaryLoop> {
+pub fn boundary_loops_where(mesh: &TriMesh, topo: &Topology, is_cut: impl Fn(EdgeId) -> bool) -> Vec<BoundaryLoop> {
     // Directed boundary half-edges a→b as their owning triangle traverses them.
-    let mut outgoing: std::collections::HashMap<VertexId, Vec<(VertexId, EdgeId)>> =
-        Default::default();
+    let mut outgoing: std::collections::HashMap<VertexId, Vec<(VertexId, EdgeId)>> = Default::default();
     let mut order = Vec::new();
     for e in 0..topo.n_edges() {
         let e = EdgeId::new(e);
@@ -75,9 +66,7 @@ pub fn boundary_loops_where(
         let mut vertices = vec![first];
         let mut edges = vec![start];
         while cur != first {
-            let next = outgoing
-                .get(&cur)
-                .and_then(|outs| outs.iter().find(|(_, e)| !used.contains(e)).copied());
+            let next = outgoing.get(&cur).and_then(|outs| outs.iter().find(|(_, e)| !used.contains(e)).copied());
             let Some((to, e)) = next else { break };
             used.insert(e);
             vertices.push(cur);

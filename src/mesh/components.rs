@@ -17,10 +17,7 @@ pub struct DisjointSets {
 impl DisjointSets {
     /// `n` singletons.
     pub fn new(n: usize) -> Self {
-        Self {
-            parent: (0..n as u32).collect(),
-            size: vec![1; n],
-        }
+        Self { parent: (0..n as u32).collect(), size: vec![1; n] }
     }
 
     /// Representative of the set containing `x`.
@@ -100,10 +97,7 @@ pub fn face_components(topo: &Topology, blocked: impl Fn(EdgeId) -> bool) -> Com
         }
     }
     let (component_per_face, n_components) = sets.labels();
-    Components {
-        component_per_face,
-        n_components,
-    }
+    Components { component_per_face, n_components }
 }
 
 /// Edge-connected components of the whole mesh.
@@ -129,28 +123,15 @@ pub fn nonmanifold_vertices(mesh: &TriMesh, topo: &Topology) -> Vec<VertexId> {
     use rayon::prelude::*;
     let flags: Vec<bool> = (0..mesh.n_vertices())
         .into_par_iter()
-        .map_init(Vec::new, |parent, v| {
-            count_fans(mesh, topo, VertexId::new(v), parent) > 1
-        })
+        .map_init(Vec::new, |parent, v| count_fans(mesh, topo, VertexId::new(v), parent) > 1)
         .collect();
-    flags
-        .iter()
-        .enumerate()
-        .filter(|(_, f)| **f)
-        .map(|(v, _)| VertexId::new(v))
-        .collect()
+    flags.iter().enumerate().filter(|(_, f)| **f).map(|(v, _)| VertexId::new(v)).collect()
 }
 
 /// True when one of `candidates` has more than one fan of triangles.
-pub fn any_nonmanifold_vertex(
-    mesh: &TriMesh,
-    topo: &Topology,
-    candidates: impl IntoIterator<Item = VertexId>,
-) -> bool {
+pub fn any_nonmanifold_vertex(mesh: &TriMesh, topo: &Topology, candidates: impl IntoIterator<Item = VertexId>) -> bool {
     let mut parent = Vec::new();
-    candidates
-        .into_iter()
-        .any(|v| count_fans(mesh, topo, v, &mut parent) > 1)
+    candidates.into_iter().any(|v| count_fans(mesh, topo, v, &mut parent) > 1)
 }
 
 /// Number of fans of the triangles around `v`: a union–find over the
@@ -204,10 +185,8 @@ mod tests {
         let a = fixtures::tetrahedron();
         let mut m = a.clone();
         let n = m.positions.len() as u32;
-        m.positions
-            .extend(a.positions.iter().map(|p| p + Vec3::new(5.0, 0.0, 0.0)));
-        m.triangles
-            .extend(a.triangles.iter().map(|t| t.map(|v| VertexId(v.0 + n))));
+        m.positions.extend(a.positions.iter().map(|p| p + Vec3::new(5.0, 0.0, 0.0)));
+        m.triangles.extend(a.triangles.iter().map(|t| t.map(|v| VertexId(v.0 + n))));
         let t = Topology::new(&m);
         let c = connected_components(&t);
         assert_eq!(c.n_components, 2);

@@ -151,18 +151,7 @@ impl Quadric {
     /// `(n·x + d)²` for the plane with unit normal `n` and offset `d`.
     fn of_plane(n: &Vec3, d: f64) -> Self {
         let (x, y, z) = (n.x, n.y, n.z);
-        Self([
-            x * x,
-            x * y,
-            x * z,
-            x * d,
-            y * y,
-            y * z,
-            y * d,
-            z * z,
-            z * d,
-            d * d,
-        ])
+        Self([x * x, x * y, x * z, x * d, y * y, y * z, y * d, z * z, z * d, d * d])
     }
 
     /// The sum of two quadrics (planes of both).
@@ -202,16 +191,8 @@ struct Candidate {
 impl Candidate {
     /// The heap entry of `from`'s candidate with this cost and stamp.
     fn new(cost: f64, from: usize, stamp: u32) -> Self {
-        let cost = if cost.is_finite() {
-            cost.max(0.0)
-        } else {
-            f64::MAX
-        };
-        Self {
-            cost_bits: cost.to_bits(),
-            from: from as u32,
-            stamp,
-        }
+        let cost = if cost.is_finite() { cost.max(0.0) } else { f64::MAX };
+        Self { cost_bits: cost.to_bits(), from: from as u32, stamp }
     }
 }
 
@@ -307,11 +288,7 @@ struct Queued {
 
 impl Queued {
     /// Nothing queued.
-    const EMPTY: Self = Self {
-        target: NONE,
-        cost: 0.0,
-        fallback: false,
-    };
+    const EMPTY: Self = Self { target: NONE, cost: 0.0, fallback: false };
 }
 
 /// The mutable state of the decimation: triangles, incidences, quadrics, queue.
@@ -346,18 +323,13 @@ impl<'a> Collapser<'a> {
     fn new(mesh: &'a TriMesh, topo: &Topology, locked: Vec<bool>) -> Self {
         let n_v = mesh.n_vertices();
         let triangles: Vec<[u32; 3]> = mesh.triangles.iter().map(|t| t.map(|v| v.0)).collect();
-        let quadric_per_face: Vec<Quadric> = triangles
-            .iter()
-            .map(|t| face_quadric(&mesh.positions, t))
-            .collect();
+        let quadric_per_face: Vec<Quadric> = triangles.iter().map(|t| face_quadric(&mesh.positions, t)).collect();
         let mut faces_per_vertex = Vec::with_capacity(n_v);
         let mut quadric_per_vertex = Vec::with_capacity(n_v);
         let mut own_error_per_vertex = Vec::with_capacity(n_v);
         for v in 0..n_v {
             let faces = topo.vertex_faces(VertexId::new(v));
-            let q = faces
-                .iter()
-                .fold(Quadric::default(), |q, f| q.add(&quadric_per_face[f.idx()]));
+            let q = faces.iter().fold(Quadric::default(), |q, f| q.add(&quadric_per_face[f.idx()]));
             faces_per_vertex.push(faces.iter().map(|f| f.0).collect::<Vec<u32>>());
             quadric_per_vertex.push(q);
             own_error_per_vertex.push(q.eval(&mesh.positions[v]));
@@ -395,9 +367,7 @@ impl<'a> Collapser<'a> {
             if self.removed[u] || self.stamp_per_vertex[u] != c.stamp {
                 continue;
             }
-            let Queued {
-                target, fallback, ..
-            } = std::mem::replace(&mut self.queued_per_vertex[u], Queued::EMPTY);
+            let Queued { target, fallback, .. } = std::mem::replace(&mut self.queued_per_vertex[u], Queued::EMPTY);
             let v = target as usize;
             if self.collapse_is_valid(u, v) {
                 self.collapse(u, v);
@@ -413,11 +383,7 @@ impl<'a> Collapser<'a> {
         let mut entries = Vec::with_capacity(self.positions.len());
         for u in 0..self.positions.len() {
             if let Some((cost, v)) = self.cheapest_target(u) {
-                self.queued_per_vertex[u] = Queued {
-                    target: v,
-                    cost,
-                    fallback: false,
-                };
+                self.queued_per_vertex[u] = Queued { target: v, cost, fallback: false };
                 entries.push(Candidate::new(cost, u, 0));
             }
         }
@@ -458,13 +424,8 @@ impl<'a> Collapser<'a> {
             Some((cost, v)) if !fallback && !q.fallback && (q.target, q.cost) == (v, cost) => {}
             Some((cost, v)) => {
                 self.stamp_per_vertex[u] = self.stamp_per_vertex[u].wrapping_add(1);
-                self.queued_per_vertex[u] = Queued {
-                    target: v,
-                    cost,
-                    fallback,
-                };
-                self.heap
-                    .push(Candidate::new(cost, u, self.stamp_per_vertex[u]));
+                self.queued_per_vertex[u] = Queued { target: v, cost, fallback };
+                self.heap.push(Candidate::new(cost, u, self.stamp_per_vertex[u]));
             }
             None => {
                 self.stamp_per_vertex[u] = self.stamp_per_vertex[u].wrapping_add(1);
@@ -483,10 +444,7 @@ impl<'a> Collapser<'a> {
             costs.push((self.cost(u, v as usize), v));
         }
         costs.sort_unstable_by(|a, b| a.0.total_cmp(&b.0).then(a.1.cmp(&b.1)));
-        let best = costs
-            .iter()
-            .copied()
-            .find(|&(_, v)| self.collapse_is_valid(u, v as usize));
+        let best = costs.iter().copied().find(|&(_, v)| self.collapse_is_valid(u, v as usize));
         self.scratch_costs = costs;
         self.set_candidate(u, best, true);
     }
@@ -546,15 +504,10 @@ impl<'a> Collapser<'a> {
         let Some(apexes) = self.edge_apexes(u, v) else {
             return false;
         };
-        if apexes
-            .iter()
-            .any(|&w| self.faces_per_vertex[w as usize].len() <= 3)
-        {
+        if apexes.iter().any(|&w| self.faces_per_vertex[w as usize].len() <= 3) {
             return false;
         }
-        self.new_edges_short_enough(u, v)
-            && self.link_condition_holds(u, v)
-            && self.shapes_stay_valid(u, v)
+        self.new_edges_short_enough(u, v) && self.link_condition_holds(u, v) && self.shapes_stay_valid(u, v)
     }
 
     /// Every edge `u → v` creates (from `v` to a neighbour of `u`) is at
@@ -687,23 +640,13 @@ impl<'a> Collapser<'a> {
                 fine_vertex.push(VertexId::new(w));
             }
         }
-        let triangles: Vec<[u32; 3]> = self
-            .alive_triangles()
-            .map(|(t, _)| t.map(|w| new_id[w as usize]))
-            .collect();
-        Decimated {
-            mesh: TriMesh::from_raw(positions, &triangles),
-            fine_vertex,
-        }
+        let triangles: Vec<[u32; 3]> = self.alive_triangles().map(|(t, _)| t.map(|w| new_id[w as usize])).collect();
+        Decimated { mesh: TriMesh::from_raw(positions, &triangles), fine_vertex }
     }
 
     /// Surviving triangles with their input face index, in input order.
     fn alive_triangles(&self) -> impl Iterator<Item = ([u32; 3], usize)> + '_ {
-        self.triangles
-            .iter()
-            .enumerate()
-            .filter(|(f, _)| self.face_alive[*f])
-            .map(|(f, t)| (*t, f))
+        self.triangles.iter().enumerate().filter(|(f, _)| self.face_alive[*f]).map(|(f, t)| (*t, f))
     }
 }
 
@@ -735,10 +678,7 @@ fn next_corner(t: &[u32; 3], u: u32) -> u32 {
 /// The corner of `t` that is neither `u` nor `v`.
 #[inline]
 fn third_corner(t: &[u32; 3], u: u32, v: u32) -> u32 {
-    t.iter()
-        .copied()
-        .find(|&w| w != u && w != v)
-        .unwrap_or(NONE)
+    t.iter().copied().find(|&w| w != u && w != v).unwrap_or(NONE)
 }
 
 /// Remove face `f` from an incidence list (order is not kept).
@@ -769,19 +709,13 @@ mod tests {
         let ctopo = Topology::new(coarse);
         ctopo.validate(coarse).expect("valid coarse topology");
         assert_eq!(n_inconsistent_edges(coarse, &ctopo), 0, "orientation");
-        let (fs, cs) = (
-            topology_summary(fine, &topo),
-            topology_summary(coarse, &ctopo),
-        );
+        let (fs, cs) = (topology_summary(fine, &topo), topology_summary(coarse, &ctopo));
         assert_eq!(cs.euler_characteristic, fs.euler_characteristic);
         assert_eq!(cs.n_boundary_loops, fs.n_boundary_loops);
         assert_eq!(cs.n_components(), fs.n_components());
         assert_eq!(cs.n_nonmanifold_edges, fs.n_nonmanifold_edges);
         assert_eq!(cs.n_nonmanifold_vertices, fs.n_nonmanifold_vertices);
-        assert_eq!(
-            boundary_loops(coarse, &ctopo).len(),
-            boundary_loops(fine, &topo).len()
-        );
+        assert_eq!(boundary_loops(coarse, &ctopo).len(), boundary_loops(fine, &topo).len());
         assert_eq!(dec.fine_vertex.len(), coarse.n_vertices());
         for (c, &f) in dec.fine_vertex.iter().enumerate() {
             assert_eq!(coarse.positions[c], fine.positions[f.idx()]);
@@ -830,10 +764,7 @@ mod tests {
         let n = dec.mesh.n_faces();
         assert!((400..=550).contains(&n), "{n} faces");
         let (v_fine, v_coarse) = (fine.signed_volume(), dec.mesh.signed_volume());
-        assert!(
-            v_coarse > 0.0 && v_coarse > 0.9 * v_fine,
-            "{v_coarse} vs {v_fine}"
-        );
+        assert!(v_coarse > 0.0 && v_coarse > 0.9 * v_fine, "{v_coarse} vs {v_fine}");
 
         // Reversed input: normals stay inward.
         let mut inward = fine.clone();
@@ -896,12 +827,8 @@ mod tests {
             .map(length)
             .collect();
         let mean = interior.iter().sum::<f64>() / interior.len() as f64;
-        assert!(
-            mean > 0.4 * bound,
-            "interior mean edge {mean} vs bound {bound}"
-        );
-        let unbounded =
-            decimate(&fine, &topo, &none, fine.n_faces() / 64, f64::INFINITY).expect("decimate");
+        assert!(mean > 0.4 * bound, "interior mean edge {mean} vs bound {bound}");
+        let unbounded = decimate(&fine, &topo, &none, fine.n_faces() / 64, f64::INFINITY).expect("decimate");
         assert!(unbounded.mesh.n_faces() < dec.mesh.n_faces());
     }
 
@@ -922,10 +849,7 @@ mod tests {
 
     #[test]
     fn torus_and_cylinder_keep_genus_and_loops() {
-        for fine in [
-            fixtures::torus(1.0, 0.4, 60, 24),
-            fixtures::cylinder(1.0, 2.0, 48, 24),
-        ] {
+        for fine in [fixtures::torus(1.0, 0.4, 60, 24), fixtures::cylinder(1.0, 2.0, 48, 24)] {
             let none = vec![false; Topology::new(&fine).n_edges()];
             let dec = decimate_checked(&fine, &none, 400);
             assert!(dec.mesh.n_faces() <= 440, "{} faces", dec.mesh.n_faces());
@@ -945,11 +869,7 @@ mod tests {
         // The surface is still the cube's: every triangle lies in a face plane.
         for f in 0..dec.mesh.n_faces() {
             let [a, b, c] = dec.mesh.corners(FaceId::new(f));
-            let on_plane = (0..3).any(|k| {
-                [a, b, c]
-                    .iter()
-                    .all(|p| (p[k] - a[k]).abs() < 1e-12 && a[k].abs() == 1.0)
-            });
+            let on_plane = (0..3).any(|k| [a, b, c].iter().all(|p| (p[k] - a[k]).abs() < 1e-12 && a[k].abs() == 1.0));
             assert!(on_plane, "triangle {f} cuts a cube edge");
         }
     }
@@ -959,20 +879,10 @@ mod tests {
         let fine = fixtures::cube(12);
         let none = vec![false; Topology::new(&fine).n_edges()];
         let dec = decimate_checked(&fine, &none, 200);
-        for corner in dec
-            .mesh
-            .positions
-            .iter()
-            .filter(|p| p.iter().all(|c| c.abs() == 1.0))
-        {
+        for corner in dec.mesh.positions.iter().filter(|p| p.iter().all(|c| c.abs() == 1.0)) {
             assert_eq!(corner.norm_squared(), 3.0);
         }
-        let n_corners = dec
-            .mesh
-            .positions
-            .iter()
-            .filter(|p| p.iter().all(|c| c.abs() == 1.0))
-            .count();
+        let n_corners = dec.mesh.positions.iter().filter(|p| p.iter().all(|c| c.abs() == 1.0)).count();
         assert_eq!(n_corners, 8);
         assert!((dec.mesh.signed_volume() - 8.0).abs() < 0.05 * 8.0);
     }
@@ -985,11 +895,7 @@ mod tests {
         let mut tris: Vec<[u32; 3]> = Vec::new();
         for sign in [1.0, -1.0] {
             let base = positions.len() as u32;
-            positions.extend(
-                disk.positions
-                    .iter()
-                    .map(|p| Vec3::new(p.x, p.y, sign * p.norm())),
-            );
+            positions.extend(disk.positions.iter().map(|p| Vec3::new(p.x, p.y, sign * p.norm())));
             for t in &disk.triangles {
                 let t = t.map(|v| if v.0 == 0 { 0 } else { v.0 + base });
                 tris.push(if sign > 0.0 { t } else { [t[0], t[2], t[1]] });
@@ -1020,14 +926,11 @@ mod tests {
     fn heap_pops_in_order() {
         let mut state = 12345u64;
         let mut next = || {
-            state = state
-                .wrapping_mul(6364136223846793005)
-                .wrapping_add(1442695040888963407);
+            state = state.wrapping_mul(6364136223846793005).wrapping_add(1442695040888963407);
             (state >> 33) as u32
         };
-        let items: Vec<Candidate> = (0..500)
-            .map(|i| Candidate::new((next() % 50) as f64 * 0.5, i, next() % 3))
-            .collect();
+        let items: Vec<Candidate> =
+            (0..500).map(|i| Candidate::new((next() % 50) as f64 * 0.5, i, next() % 3)).collect();
         let mut heap = MinHeap4::from_vec(items[..300].to_vec());
         for &c in &items[300..] {
             heap.push(c);

@@ -22,22 +22,14 @@ pub fn tetrahedron() -> TriMesh {
 /// each, diagonals alternating with the cell parity (a "union jack" pattern,
 /// symmetric under the square's reflections).
 pub fn square(n: usize) -> TriMesh {
-    grid_mesh_cells(
-        n,
-        n,
-        |_, _| true,
-        true,
-        |i, j| Vec3::new(i as f64 / n as f64, j as f64 / n as f64, 0.0),
-    )
+    grid_mesh_cells(n, n, |_, _| true, true, |i, j| Vec3::new(i as f64 / n as f64, j as f64 / n as f64, 0.0))
 }
 
 /// Unit square with every diagonal in the same direction (the "structured"
 /// mesh of thesis appendix A.B, on which mean value coordinates are not a
 /// Laplacian).
 pub fn square_structured(n: usize) -> TriMesh {
-    grid_mesh(n, n, |i, j| {
-        Some(Vec3::new(i as f64 / n as f64, j as f64 / n as f64, 0.0))
-    })
+    grid_mesh(n, n, |i, j| Some(Vec3::new(i as f64 / n as f64, j as f64 / n as f64, 0.0)))
 }
 
 /// L-shaped domain `[0,2]² \ (1,2]²` with `n` cells per unit length.
@@ -167,8 +159,7 @@ pub fn icosphere(level: usize) -> TriMesh {
         for [a, b, c] in tris {
             let mut m = |x: u32, y: u32| {
                 *mid.entry((x.min(y), x.max(y))).or_insert_with(|| {
-                    positions
-                        .push(((positions[x as usize] + positions[y as usize]) * 0.5).normalize());
+                    positions.push(((positions[x as usize] + positions[y as usize]) * 0.5).normalize());
                     (positions.len() - 1) as u32
                 })
             };
@@ -211,27 +202,20 @@ pub fn cube(n: usize) -> TriMesh {
     let n_i = n as i64;
     for axis in 0..3 {
         for side in [0i64, n_i] {
-            let (b, c) = if side == n_i {
-                ((axis + 1) % 3, (axis + 2) % 3)
-            } else {
-                ((axis + 2) % 3, (axis + 1) % 3)
-            };
+            let (b, c) = if side == n_i { ((axis + 1) % 3, (axis + 2) % 3) } else { ((axis + 2) % 3, (axis + 1) % 3) };
             let mut vid = |i: i64, j: i64| {
                 let mut key = [0i64; 3];
                 key[axis] = side;
                 key[b] = i;
                 key[c] = j;
                 *index.entry(key).or_insert_with(|| {
-                    positions.push(Vec3::from_iterator(
-                        key.iter().map(|&k| 2.0 * k as f64 / n as f64 - 1.0),
-                    ));
+                    positions.push(Vec3::from_iterator(key.iter().map(|&k| 2.0 * k as f64 / n as f64 - 1.0)));
                     (positions.len() - 1) as u32
                 })
             };
             for i in 0..n_i {
                 for j in 0..n_i {
-                    let (p00, p10, p11, p01) =
-                        (vid(i, j), vid(i + 1, j), vid(i + 1, j + 1), vid(i, j + 1));
+                    let (p00, p10, p11, p01) = (vid(i, j), vid(i + 1, j), vid(i + 1, j + 1), vid(i, j + 1));
                     tris.push([p00, p10, p11]);
                     tris.push([p00, p11, p01]);
                 }
@@ -270,21 +254,13 @@ pub fn mobius_band(n: usize) -> TriMesh {
         let u = TAU * i as f64 / n as f64;
         for t in [-1.0f64, 1.0] {
             let r = 1.0 + 0.25 * t * (u / 2.0).cos();
-            positions.push(Vec3::new(
-                r * u.cos(),
-                r * u.sin(),
-                0.25 * t * (u / 2.0).sin(),
-            ));
+            positions.push(Vec3::new(r * u.cos(), r * u.sin(), 0.25 * t * (u / 2.0).sin()));
         }
     }
     let mut tris = Vec::new();
     for i in 0..n {
         let (a0, b0) = (2 * i as u32, 2 * i as u32 + 1);
-        let (a1, b1) = if i + 1 < n {
-            (2 * (i + 1) as u32, 2 * (i + 1) as u32 + 1)
-        } else {
-            (1, 0)
-        };
+        let (a1, b1) = if i + 1 < n { (2 * (i + 1) as u32, 2 * (i + 1) as u32 + 1) } else { (1, 0) };
         tris.push([a0, a1, b1]);
         tris.push([a0, b1, b0]);
     }
@@ -311,13 +287,7 @@ pub fn compact(mut mesh: TriMesh) -> TriMesh {
 
 /// Structured `nx × ny` grid with every vertex present.
 fn grid_mesh(nx: usize, ny: usize, at: impl Fn(usize, usize) -> Option<Vec3>) -> TriMesh {
-    grid_mesh_cells(
-        nx,
-        ny,
-        |_, _| true,
-        false,
-        |i, j| at(i, j).expect("grid vertex"),
-    )
+    grid_mesh_cells(nx, ny, |_, _| true, false, |i, j| at(i, j).expect("grid vertex"))
 }
 
 /// Structured grid keeping only the cells `(i, j)` for which `keep` holds;
@@ -371,11 +341,7 @@ fn zip_rings(positions: &[Vec3], inner: &[u32], outer: &[u32], tris: &mut Vec<[u
     }
     let next_angle = |ring: &[u32], i: usize| {
         let a = angle(ring[(i + 1) % ring.len()]);
-        if i + 1 >= ring.len() || a < angle(ring[i]) {
-            a + TAU
-        } else {
-            a
-        }
+        if i + 1 >= ring.len() || a < angle(ring[i]) { a + TAU } else { a }
     };
     let (mut i, mut j) = (0, 0);
     while i < m || j < n {
@@ -406,9 +372,7 @@ mod tests {
         let t = Topology::new(m);
         assert_eq!(n_inconsistent_edges(m, &t), 0);
         assert_eq!(t.n_nonmanifold_edges(), 0);
-        let min_area = (0..m.n_faces())
-            .map(|f| m.face_area(FaceId::new(f)))
-            .fold(f64::INFINITY, f64::min);
+        let min_area = (0..m.n_faces()).map(|f| m.face_area(FaceId::new(f))).fold(f64::INFINITY, f64::min);
         assert!(min_area > 0.0);
     }
 
@@ -437,12 +401,7 @@ mod tests {
         for m in [square(3), l_shape(2), disk(5), annulus(0.4, 1.0, 20, 3)] {
             assert!((0..m.n_faces()).all(|f| m.face_normal(FaceId::new(f)).z > 0.999));
         }
-        for m in [
-            icosphere(2),
-            torus(1.0, 0.4, 24, 12),
-            cube(3),
-            tetrahedron(),
-        ] {
+        for m in [icosphere(2), torus(1.0, 0.4, 24, 12), cube(3), tetrahedron()] {
             assert!(m.signed_volume() > 0.0);
         }
         let d = disk(8);

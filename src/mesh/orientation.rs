@@ -80,13 +80,7 @@ pub fn orient_consistently(mesh: &mut TriMesh, topo: &mut Topology) -> Orientati
 }
 
 /// True when triangle `g` traverses local edge `i` of `f` in the same direction as `f`.
-fn traverses_same_direction(
-    mesh: &TriMesh,
-    topo: &Topology,
-    f: FaceId,
-    i: usize,
-    g: FaceId,
-) -> bool {
+fn traverses_same_direction(mesh: &TriMesh, topo: &Topology, f: FaceId, i: usize, g: FaceId) -> bool {
     let e = topo.face_edges[f.idx()][i];
     let j = topo.local_edge(g, e).expect("neighbour shares the edge");
     mesh.triangles[f.idx()][i] == mesh.triangles[g.idx()][j]
@@ -94,11 +88,7 @@ fn traverses_same_direction(
 
 /// True when every edge of these triangles has exactly two triangles.
 fn is_closed(topo: &Topology, faces: &[FaceId]) -> bool {
-    faces.iter().all(|f| {
-        topo.face_edges[f.idx()]
-            .iter()
-            .all(|&e| topo.edge_valence(e) == 2)
-    })
+    faces.iter().all(|f| topo.face_edges[f.idx()].iter().all(|&e| topo.edge_valence(e) == 2))
 }
 
 /// Signed volume enclosed by the given triangles.
@@ -117,9 +107,7 @@ pub fn n_inconsistent_edges(mesh: &TriMesh, topo: &Topology) -> usize {
     (0..topo.n_edges())
         .filter(|&e| match topo.edge_faces(super::EdgeId::new(e)) {
             [f, g] => {
-                let i = topo
-                    .local_edge(*f, super::EdgeId::new(e))
-                    .expect("own edge");
+                let i = topo.local_edge(*f, super::EdgeId::new(e)).expect("own edge");
                 traverses_same_direction(mesh, topo, *f, i, *g)
             }
             _ => false,

@@ -375,7 +375,10 @@ mod tests {
     #[test]
     fn out_of_range_is_an_error_and_all_removed_is_empty() {
         let p = vec![Vec3::zeros(), Vec3::x()];
-        assert!(matches!(repair_triangle_soup(p.clone(), vec![[0, 1, 2]], 0.0), Err(MeshError::VertexOutOfRange { .. })));
+        assert!(matches!(
+            repair_triangle_soup(p.clone(), vec![[0, 1, 2]], 0.0),
+            Err(MeshError::VertexOutOfRange { .. })
+        ));
         let (r, rep) = repair_triangle_soup(p, vec![[0, 1, 1]], 0.0).unwrap();
         assert_eq!((r.n_faces(), r.n_vertices(), rep.n_degenerate_triangles_removed), (0, 0, 1));
     }

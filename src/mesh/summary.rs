@@ -148,10 +148,7 @@ pub fn topology_summary(mesh: &TriMesh, topo: &Topology) -> TopologySummary {
             }
         })
         .collect();
-    let used = super::components::referenced_vertices(mesh)
-        .iter()
-        .filter(|&&u| u)
-        .count();
+    let used = super::components::referenced_vertices(mesh).iter().filter(|&&u| u).count();
     TopologySummary {
         n_vertices: used,
         n_edges: topo.n_edges(),
@@ -177,30 +174,15 @@ mod tests {
     #[test]
     fn known_surfaces() {
         let s = summary(&fixtures::icosphere(2));
-        assert_eq!(
-            (s.euler_characteristic, s.genus(), s.is_closed()),
-            (2, Some(0), true)
-        );
+        assert_eq!((s.euler_characteristic, s.genus(), s.is_closed()), (2, Some(0), true));
         let s = summary(&fixtures::torus(1.0, 0.4, 24, 12));
-        assert_eq!(
-            (s.euler_characteristic, s.genus(), s.n_boundary_loops),
-            (0, Some(1), 0)
-        );
+        assert_eq!((s.euler_characteristic, s.genus(), s.n_boundary_loops), (0, Some(1), 0));
         let s = summary(&fixtures::disk(5));
-        assert_eq!(
-            (s.euler_characteristic, s.genus(), s.n_boundary_loops),
-            (1, Some(0), 1)
-        );
+        assert_eq!((s.euler_characteristic, s.genus(), s.n_boundary_loops), (1, Some(0), 1));
         let s = summary(&fixtures::annulus(0.3, 1.0, 20, 3));
-        assert_eq!(
-            (s.euler_characteristic, s.genus(), s.n_boundary_loops),
-            (0, Some(0), 2)
-        );
+        assert_eq!((s.euler_characteristic, s.genus(), s.n_boundary_loops), (0, Some(0), 2));
         let s = summary(&fixtures::cube(3));
-        assert_eq!(
-            (s.euler_characteristic, s.genus(), s.n_components()),
-            (2, Some(0), 1)
-        );
+        assert_eq!((s.euler_characteristic, s.genus(), s.n_components()), (2, Some(0), 1));
     }
 
     #[test]
@@ -211,15 +193,8 @@ mod tests {
         let n = m.positions.len() as u32;
         m.positions.extend(a.positions.iter().map(|p| -p));
         // Share vertex 0 (the origin of the fixture) between both copies.
-        m.triangles.extend(a.triangles.iter().map(|t| {
-            t.map(|v| {
-                if v.0 == 0 {
-                    v
-                } else {
-                    super::super::VertexId(v.0 + n)
-                }
-            })
-        }));
+        m.triangles
+            .extend(a.triangles.iter().map(|t| t.map(|v| if v.0 == 0 { v } else { super::super::VertexId(v.0 + n) })));
         let s = summary(&m);
         assert_eq!(s.n_nonmanifold_vertices, 1);
         assert_eq!(s.components.len(), 2);

@@ -36,10 +36,7 @@ impl TetMesh {
 
     /// Total volume.
     pub fn volume(&self) -> f64 {
-        (0..self.n_tets())
-            .map(|t| self.signed_volume6(TetId::new(t)))
-            .sum::<f64>()
-            / 6.0
+        (0..self.n_tets()).map(|t| self.signed_volume6(TetId::new(t))).sum::<f64>() / 6.0
     }
 
     /// Swap two corners of every negatively oriented tet; returns how many.
@@ -66,10 +63,7 @@ impl TetMesh {
         for t in 0..self.tets.len() {
             let v = self.signed_volume6(TetId::new(t));
             if v.is_nan() || v <= 0.0 {
-                return Err(MeshError::InvertedTet {
-                    tet: t,
-                    volume: v / 6.0,
-                });
+                return Err(MeshError::InvertedTet { tet: t, volume: v / 6.0 });
             }
         }
         Ok(())
@@ -86,10 +80,7 @@ mod tests {
             positions: vec![Vec3::zeros(), Vec3::x(), Vec3::y(), Vec3::z()],
             tets: vec![[VertexId(0), VertexId(2), VertexId(1), VertexId(3)]],
         };
-        assert!(matches!(
-            m.validate(),
-            Err(MeshError::InvertedTet { tet: 0, .. })
-        ));
+        assert!(matches!(m.validate(), Err(MeshError::InvertedTet { tet: 0, .. })));
         assert_eq!(m.orient_positive(), 1);
         assert!(m.validate().is_ok());
         assert!((m.volume() - 1.0 / 6.0).abs() < 1e-15);

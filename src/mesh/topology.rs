@@ -91,14 +91,7 @@ impl Topology {
         edge_face_offsets.push(edge_faces.len() as u32);
 
         let (vertex_face_offsets, vertex_faces) = vertex_face_csr(mesh);
-        let topo = Self {
-            edges,
-            face_edges,
-            edge_face_offsets,
-            edge_faces,
-            vertex_face_offsets,
-            vertex_faces,
-        };
+        let topo = Self { edges, face_edges, edge_face_offsets, edge_faces, vertex_face_offsets, vertex_faces };
         debug_assert!(topo.validate(mesh).is_ok());
         topo
     }
@@ -112,10 +105,7 @@ impl Topology {
     /// Triangles incident to edge `e` (one for boundary, two for interior edges).
     #[inline]
     pub fn edge_faces(&self, e: EdgeId) -> &[FaceId] {
-        let (a, b) = (
-            self.edge_face_offsets[e.idx()],
-            self.edge_face_offsets[e.idx() + 1],
-        );
+        let (a, b) = (self.edge_face_offsets[e.idx()], self.edge_face_offsets[e.idx() + 1]);
         &self.edge_faces[a as usize..b as usize]
     }
 
@@ -140,20 +130,14 @@ impl Topology {
     /// Triangles incident to vertex `v`, in increasing id order.
     #[inline]
     pub fn vertex_faces(&self, v: VertexId) -> &[FaceId] {
-        let (a, b) = (
-            self.vertex_face_offsets[v.idx()],
-            self.vertex_face_offsets[v.idx() + 1],
-        );
+        let (a, b) = (self.vertex_face_offsets[v.idx()], self.vertex_face_offsets[v.idx() + 1]);
         &self.vertex_faces[a as usize..b as usize]
     }
 
     /// The edge joining `a` and `b`, if any (`O(valence)` lookup).
     pub fn edge_between(&self, a: VertexId, b: VertexId) -> Option<EdgeId> {
         let key = [a.min(b), a.max(b)];
-        self.vertex_faces(a)
-            .iter()
-            .flat_map(|f| self.face_edges[f.idx()])
-            .find(|e| self.edges[e.idx()] == key)
+        self.vertex_faces(a).iter().flat_map(|f| self.face_edges[f.idx()]).find(|e| self.edges[e.idx()] == key)
     }
 
     /// The triangle across local edge `i` of `f`, when that edge is interior (valence 2).
@@ -179,16 +163,12 @@ impl Topology {
 
     /// Number of boundary edges.
     pub fn n_boundary_edges(&self) -> usize {
-        (0..self.n_edges())
-            .filter(|&e| self.is_boundary_edge(EdgeId::new(e)))
-            .count()
+        (0..self.n_edges()).filter(|&e| self.is_boundary_edge(EdgeId::new(e))).count()
     }
 
     /// Number of non-manifold edges (three or more triangles).
     pub fn n_nonmanifold_edges(&self) -> usize {
-        (0..self.n_edges())
-            .filter(|&e| self.is_nonmanifold_edge(EdgeId::new(e)))
-            .count()
+        (0..self.n_edges()).filter(|&e| self.is_nonmanifold_edge(EdgeId::new(e))).count()
     }
 
     /// Check that this topology describes `mesh`.
@@ -198,11 +178,7 @@ impl Topology {
     pub fn validate(&self, mesh: &TriMesh) -> Result<(), MeshError> {
         let bad = |s: String| Err(MeshError::Inconsistent(s));
         if self.face_edges.len() != mesh.n_faces() {
-            return bad(format!(
-                "{} face edge rows for {} triangles",
-                self.face_edges.len(),
-                mesh.n_faces()
-            ));
+            return bad(format!("{} face edge rows for {} triangles", self.face_edges.len(), mesh.n_faces()));
         }
         if self.vertex_face_offsets.len() != mesh.n_vertices() + 1 {
             return bad("vertex-face rows do not match the vertex count".into());
@@ -222,9 +198,7 @@ impl Topology {
                 }
             }
         }
-        if self.edge_faces.len() != 3 * mesh.n_faces()
-            || self.vertex_faces.len() != 3 * mesh.n_faces()
-        {
+        if self.edge_faces.len() != 3 * mesh.n_faces() || self.vertex_faces.len() != 3 * mesh.n_faces() {
             return bad("incidence counts differ from 3 per triangle".into());
         }
         Ok(())
@@ -288,10 +262,7 @@ mod tests {
         let t = Topology::new(&m);
         assert_eq!(t.n_edges(), 5);
         assert_eq!(t.n_boundary_edges(), 4);
-        let e = (0..5)
-            .map(EdgeId::new)
-            .find(|&e| t.edge_valence(e) == 2)
-            .unwrap();
+        let e = (0..5).map(EdgeId::new).find(|&e| t.edge_valence(e) == 2).unwrap();
         let [a, b] = t.edges[e.idx()];
         assert_eq!(t.edge_between(b, a), Some(e));
         let f = t.edge_faces(e)[0];

@@ -19,10 +19,7 @@ impl TriMesh {
     /// A mesh from positions and `u32` triangles (as readers produce them).
     pub fn from_raw(positions: Vec<Vec3>, triangles: &[[u32; 3]]) -> Self {
         let triangles = triangles.iter().map(|t| t.map(VertexId)).collect();
-        Self {
-            positions,
-            triangles,
-        }
+        Self { positions, triangles }
     }
 
     /// Number of vertices.
@@ -72,9 +69,7 @@ impl TriMesh {
 
     /// Sum of triangle areas.
     pub fn area(&self) -> f64 {
-        (0..self.n_faces())
-            .map(|f| self.face_area(FaceId::new(f)))
-            .sum()
+        (0..self.n_faces()).map(|f| self.face_area(FaceId::new(f))).sum()
     }
 
     /// Signed volume enclosed (divergence theorem); positive for a closed
@@ -130,51 +125,29 @@ impl TriMesh {
 /// Counts must fit the 32-bit ids.
 pub(crate) fn check_count(what: &'static str, count: usize) -> Result<(), MeshError> {
     let max = u32::MAX as usize;
-    if count > max {
-        Err(MeshError::TooLarge { what, count, max })
-    } else {
-        Ok(())
-    }
+    if count > max { Err(MeshError::TooLarge { what, count, max }) } else { Ok(()) }
 }
 
 /// Every coordinate must be finite.
 pub(crate) fn check_finite(positions: &[Vec3]) -> Result<(), MeshError> {
-    match positions
-        .iter()
-        .position(|p| !p.iter().all(|c| c.is_finite()))
-    {
+    match positions.iter().position(|p| !p.iter().all(|c| c.is_finite())) {
         Some(i) => {
             let p = positions[i];
-            Err(MeshError::NonFiniteCoordinate {
-                vertex: i,
-                x: p.x,
-                y: p.y,
-                z: p.z,
-            })
+            Err(MeshError::NonFiniteCoordinate { vertex: i, x: p.x, y: p.y, z: p.z })
         }
         None => Ok(()),
     }
 }
 
 /// Every element index must be in range and distinct within its element.
-pub(crate) fn check_elements<const N: usize>(
-    elements: &[[VertexId; N]],
-    n_vertices: usize,
-) -> Result<(), MeshError> {
+pub(crate) fn check_elements<const N: usize>(elements: &[[VertexId; N]], n_vertices: usize) -> Result<(), MeshError> {
     for (e, el) in elements.iter().enumerate() {
         for (i, v) in el.iter().enumerate() {
             if v.idx() >= n_vertices {
-                return Err(MeshError::VertexOutOfRange {
-                    element: e,
-                    vertex: v.0,
-                    n_vertices,
-                });
+                return Err(MeshError::VertexOutOfRange { element: e, vertex: v.0, n_vertices });
             }
             if el[..i].contains(v) {
-                return Err(MeshError::RepeatedVertex {
-                    element: e,
-                    vertex: v.0,
-                });
+                return Err(MeshError::RepeatedVertex { element: e, vertex: v.0 });
             }
         }
     }
@@ -208,29 +181,13 @@ mod tests {
     fn validate_names_the_broken_element() {
         let mut m = unit_square();
         m.triangles[1][2] = VertexId(9);
-        assert_eq!(
-            m.validate(),
-            Err(MeshError::VertexOutOfRange {
-                element: 1,
-                vertex: 9,
-                n_vertices: 4
-            })
-        );
+        assert_eq!(m.validate(), Err(MeshError::VertexOutOfRange { element: 1, vertex: 9, n_vertices: 4 }));
         let mut m = unit_square();
         m.triangles[0][2] = VertexId(0);
-        assert_eq!(
-            m.validate(),
-            Err(MeshError::RepeatedVertex {
-                element: 0,
-                vertex: 0
-            })
-        );
+        assert_eq!(m.validate(), Err(MeshError::RepeatedVertex { element: 0, vertex: 0 }));
         let mut m = unit_square();
         m.positions[3].y = f64::NAN;
-        assert!(matches!(
-            m.validate(),
-            Err(MeshError::NonFiniteCoordinate { vertex: 3, .. })
-        ));
+        assert!(matches!(m.validate(), Err(MeshError::NonFiniteCoordinate { vertex: 3, .. })));
     }
 
     #[test]

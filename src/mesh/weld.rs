@@ -93,7 +93,14 @@ pub fn weld_vertices(positions: &[Vec3], tolerance_rel: f64) -> Weld {
     };
     let n_welded_tolerance = exact_positions.len() - cluster_positions.len();
     let new_index = exact_index.iter().map(|&i| cluster_index[i as usize]).collect();
-    Weld { new_index, positions: cluster_positions, n_welded_exact, n_welded_tolerance, tolerance, tolerance_weld_abandoned: false }
+    Weld {
+        new_index,
+        positions: cluster_positions,
+        n_welded_exact,
+        n_welded_tolerance,
+        tolerance,
+        tolerance_weld_abandoned: false,
+    }
 }
 
 /// Coordinate bits with `−0.0` mapped to `0.0`.
@@ -246,13 +253,15 @@ mod tests {
         let mut rng = StdRng::seed_from_u64(7);
         for trial in 0..20 {
             let tol = 0.02;
-            let mut pts: Vec<Vec3> =
-                (0..300).map(|_| Vec3::new(rng.random::<f64>(), rng.random::<f64>(), rng.random::<f64>() * 0.1)).collect();
+            let mut pts: Vec<Vec3> = (0..300)
+                .map(|_| Vec3::new(rng.random::<f64>(), rng.random::<f64>(), rng.random::<f64>() * 0.1))
+                .collect();
             // Near-duplicates, some exactly at the tolerance, some in chains.
             for k in 0..60 {
                 let base = pts[k * 3];
                 let d = if k % 3 == 0 { tol } else { tol * rng.random::<f64>() };
-                let dir = Vec3::new(rng.random::<f64>() - 0.5, rng.random::<f64>() - 0.5, rng.random::<f64>() - 0.5).normalize();
+                let dir = Vec3::new(rng.random::<f64>() - 0.5, rng.random::<f64>() - 0.5, rng.random::<f64>() - 0.5)
+                    .normalize();
                 pts.push(base + dir * d * 0.999_999);
             }
             let (idx, out) = weld_within(&pts, tol).unwrap();

@@ -69,7 +69,8 @@ pub fn run_atlas(
     );
     let artifacts = vec![msh?, vtu?, uv?];
     let write_seconds = write_start.elapsed().as_secs_f64();
-    let summary = serde_json::to_value(&atlas.report).map_err(|e| PipelineError::stage("atlas", "stage-failed", e.to_string()))?;
+    let summary = serde_json::to_value(&atlas.report)
+        .map_err(|e| PipelineError::stage("atlas", "stage-failed", e.to_string()))?;
     products.features = Some(atlas.features);
     Ok(StageOutput { summary, artifacts, write_seconds })
 }
@@ -101,8 +102,8 @@ pub fn run_crossfield(
         write_artifact(out_dir, "crossfield.msh", |w| write_crossfield_msh(&field, surface, w))?,
     ];
     let write_seconds = write_start.elapsed().as_secs_f64();
-    let summary =
-        serde_json::to_value(&field.report).map_err(|e| PipelineError::stage("crossfield", "stage-failed", e.to_string()))?;
+    let summary = serde_json::to_value(&field.report)
+        .map_err(|e| PipelineError::stage("crossfield", "stage-failed", e.to_string()))?;
     Ok(StageOutput { summary, artifacts, write_seconds })
 }
 
@@ -131,7 +132,7 @@ pub fn run_frames(
         write_artifact(out_dir, "frames_singular.vtu", |w| write_singular_edges_vtu(&field, w))?,
     ];
     let write_seconds = write_start.elapsed().as_secs_f64();
-    let summary =
-        serde_json::to_value(&field.report).map_err(|e| PipelineError::stage("frames", "stage-failed", e.to_string()))?;
+    let summary = serde_json::to_value(&field.report)
+        .map_err(|e| PipelineError::stage("frames", "stage-failed", e.to_string()))?;
     Ok(StageOutput { summary, artifacts, write_seconds })
 }

@@ -113,13 +113,13 @@ fn option_schemas_list_exactly_the_option_fields() {
     for (schema, code) in cases {
         assert_eq!(schema_properties(&doc, schema), code, "schema {schema} (left) differs from the code (right)");
     }
-    let stages: BTreeSet<String> = doc["components"]["schemas"]["PipelineParams"]["properties"]["stages"]["items"]
-        ["enum"]
-        .as_vec()
-        .unwrap()
-        .iter()
-        .map(|s| s.as_str().unwrap().to_string())
-        .collect();
+    let stages: BTreeSet<String> =
+        doc["components"]["schemas"]["PipelineParams"]["properties"]["stages"]["items"]["enum"]
+            .as_vec()
+            .unwrap()
+            .iter()
+            .map(|s| s.as_str().unwrap().to_string())
+            .collect();
     for s in meshatlas::pipeline::StageName::ALL {
         assert!(stages.contains(s.as_str()), "stage {} missing from the spec", s.as_str());
     }

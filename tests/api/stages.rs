@@ -38,7 +38,10 @@ async fn download(s: &Server, job: &Value, name: &str) -> Vec<u8> {
 async fn all_three_stages_run_in_one_job() {
     let s = Server::start(Arc::new(PipelineExecutor), |c, _| c.workers = 1).await;
     let mesh = meshatlas::mesh::fixtures::icosphere(3);
-    let q = format!("?filename=ball.stl&params={}", urlenc(r#"{"stages":["frames","atlas","crossfield"],"frames":{"target_size":0.2}}"#));
+    let q = format!(
+        "?filename=ball.stl&params={}",
+        urlenc(r#"{"stages":["frames","atlas","crossfield"],"frames":{"target_size":0.2}}"#)
+    );
     let job = s.submit_ok(&q, "application/octet-stream", fixtures::stl_binary(&mesh)).await;
     let job = s.wait_final(job["id"].as_str().unwrap()).await;
     assert_eq!(job["state"], "succeeded", "{job:#}");

@@ -16,21 +16,13 @@ pub fn python(script: &str, args: &[&str]) -> Value {
     let prelude = "import sys, json\n\
         try:\n    import numpy as np, meshio, gmsh\n\
         except ImportError as e:\n    sys.stderr.write(f'missing Python module: {e}; run .ci/run to install the test tools\\n'); sys.exit(3)\n";
-    let out = Command::new("python3")
-        .arg("-c")
-        .arg(format!("{prelude}{script}"))
-        .args(args)
-        .output()
-        .unwrap_or_else(|e| {
+    let out =
+        Command::new("python3").arg("-c").arg(format!("{prelude}{script}")).args(args).output().unwrap_or_else(|e| {
             panic!("cannot run python3 ({e}); run .ci/run to install python3 with gmsh and meshio")
         });
     let stdout = String::from_utf8_lossy(&out.stdout);
     let stderr = String::from_utf8_lossy(&out.stderr);
-    assert!(
-        out.status.success(),
-        "python3 failed ({}):\n{stderr}\n{stdout}",
-        out.status
-    );
+    assert!(out.status.success(), "python3 failed ({}):\n{stderr}\n{stdout}", out.status);
     let last = stdout
         .lines()
         .rev()
@@ -41,9 +33,7 @@ pub fn python(script: &str, args: &[&str]) -> Value {
 
 /// A fresh directory `<target tmp>/<suite>/<name>` for one test's files.
 pub fn scratch(suite: &str, name: &str) -> PathBuf {
-    let dir = Path::new(env!("CARGO_TARGET_TMPDIR"))
-        .join(suite)
-        .join(name);
+    let dir = Path::new(env!("CARGO_TARGET_TMPDIR")).join(suite).join(name);
     let _ = std::fs::remove_dir_all(&dir);
     std::fs::create_dir_all(&dir).expect("create scratch dir");
     dir
@@ -57,10 +47,6 @@ pub fn path_str(p: &Path) -> &str {
 /// The shared test data directory (`../shared/data` next to the repository).
 pub fn shared_data() -> PathBuf {
     let p = Path::new(env!("CARGO_MANIFEST_DIR")).join("../shared/data");
-    assert!(
-        p.is_dir(),
-        "test data not found at {}: CI clones the repository next to ../shared",
-        p.display()
-    );
+    assert!(p.is_dir(), "test data not found at {}: CI clones the repository next to ../shared", p.display());
     p
 }

@@ -309,7 +309,8 @@ fn a_non_loopback_address_without_auth_refuses_to_start_unless_insecure_no_auth(
             }
         }
     }
-    let (mut child, addr, _dir) = spawn_serve(&["--addr", "0.0.0.0:0", "--insecure-no-auth"]).expect("--insecure-no-auth");
+    let (mut child, addr, _dir) =
+        spawn_serve(&["--addr", "0.0.0.0:0", "--insecure-no-auth"]).expect("--insecure-no-auth");
     let port = addr.rsplit(':').next().unwrap();
     let answer = raw_exchange(
         &format!("127.0.0.1:{port}"),

@@ -44,9 +44,8 @@ impl Server {
 
     /// Starts the binary on `data_dir` with `extra` flags and environment.
     pub fn start_in(data_dir: &Path, extra: &[&str], env: &[(&str, &str)]) -> Server {
-        Self::try_start_in(data_dir, extra, env).unwrap_or_else(|(code, log)| {
-            panic!("meshatlas serve exited with {code:?} before listening; log:\n{log}")
-        })
+        Self::try_start_in(data_dir, extra, env)
+            .unwrap_or_else(|(code, log)| panic!("meshatlas serve exited with {code:?} before listening; log:\n{log}"))
     }
 
     /// Like [`Server::start_in`], but a process that exits before it listens
@@ -139,8 +138,8 @@ impl Server {
 
     /// Multipart upload of `bytes` as a file named `name`.
     pub async fn submit_bytes(&self, name: &str, bytes: Vec<u8>, params: Option<&str>) -> reqwest::Response {
-        let mut form =
-            reqwest::multipart::Form::new().part("file", reqwest::multipart::Part::bytes(bytes).file_name(name.to_string()));
+        let mut form = reqwest::multipart::Form::new()
+            .part("file", reqwest::multipart::Part::bytes(bytes).file_name(name.to_string()));
         if let Some(p) = params {
             form = form.text("params", p.to_string());
         }
@@ -280,7 +279,10 @@ impl Server {
         let _ = BufReader::new(stdout).read_line(&mut line);
         let Some(addr) = line.trim().strip_prefix("listening on ").map(str::to_string) else {
             let code = child.wait().ok().and_then(|s| s.code());
-            panic!("wrapped server exited with {code:?}; log:\n{}", std::fs::read_to_string(&log_path).unwrap_or_default());
+            panic!(
+                "wrapped server exited with {code:?}; log:\n{}",
+                std::fs::read_to_string(&log_path).unwrap_or_default()
+            );
         };
         Server {
             child,

@@ -118,7 +118,12 @@ fn read_elements<R: BufRead>(
 }
 
 /// ASCII element lines `tag type ntags tag… node…`.
-fn read_elements_ascii<R: BufRead>(src: &mut Source<R>, n: u64, sink: &mut MeshSink, nodes: &NodeTable) -> Result<(), IoError> {
+fn read_elements_ascii<R: BufRead>(
+    src: &mut Source<R>,
+    n: u64,
+    sink: &mut MeshSink,
+    nodes: &NodeTable,
+) -> Result<(), IoError> {
     let mut node_tags = [0u64; 4];
     for _ in 0..n {
         let tag = src.expect_u64("an element tag")?;
@@ -242,7 +247,10 @@ mod tests {
         let e = read(bad.as_bytes(), &lim()).unwrap_err();
         assert_eq!(e.kind(), "parse-error");
         let msg = e.to_string();
-        assert!(msg.contains("node tag 20 is defined twice") && msg.contains("line 11") && msg.contains("line 14"), "{msg}");
+        assert!(
+            msg.contains("node tag 20 is defined twice") && msg.contains("line 11") && msg.contains("line 14"),
+            "{msg}"
+        );
         let same = ASCII.replace("7 9 9 9", "20 1 0 0");
         let m = read(same.as_bytes(), &lim()).unwrap();
         assert_eq!(m.skipped["duplicate node tag"], 1);
@@ -254,14 +262,22 @@ mod tests {
         let bad = ASCII.replace("3 2 2 0 1 10 30 20", "3 2 2 0 1 10 30 21");
         let e = read(bad.as_bytes(), &lim()).unwrap_err();
         assert_eq!(e.kind(), "index-out-of-range");
-        assert!(e.to_string().contains("element 3") && e.to_string().contains("vertex 21") && e.to_string().contains("line 20"), "{e}");
+        assert!(
+            e.to_string().contains("element 3")
+                && e.to_string().contains("vertex 21")
+                && e.to_string().contains("line 20"),
+            "{e}"
+        );
         let bad = ASCII.replace("30 0 1 0", "30 0 inf 0");
         let e = read(bad.as_bytes(), &lim()).unwrap_err();
         assert_eq!(e.kind(), "non-finite-coordinate");
         assert!(e.to_string().contains("vertex 30") && e.to_string().contains("line 12"), "{e}");
         let bad = ASCII.replace("$Nodes\n5\n", "$Nodes\n4\n");
         let e = read(bad.as_bytes(), &lim()).unwrap_err();
-        assert!(e.to_string().contains("expected `$EndNodes`, found `7 9 9 9") && e.to_string().contains("line 14"), "{e}");
+        assert!(
+            e.to_string().contains("expected `$EndNodes`, found `7 9 9 9") && e.to_string().contains("line 14"),
+            "{e}"
+        );
         let bad = ASCII.replace("3 2 2 0 1 10 30 20", "3 2 2 0 1 10 30 20 40");
         let e = read(bad.as_bytes(), &lim()).unwrap_err();
         assert!(e.to_string().contains("more than 3 nodes"), "{e}");

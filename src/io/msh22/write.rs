@@ -31,9 +31,7 @@ pub fn write_msh22(mut w: impl Write, model: &MshModel) -> Result<(), WriteError
     let mut buf = Vec::with_capacity(CHUNK + 4096);
     buf.extend_from_slice(b"$MeshFormat\n2.2 0 8\n$EndMeshFormat\n");
     if !model.physical_names.is_empty() {
-        buf.extend_from_slice(
-            format!("$PhysicalNames\n{}\n", model.physical_names.len()).as_bytes(),
-        );
+        buf.extend_from_slice(format!("$PhysicalNames\n{}\n", model.physical_names.len()).as_bytes());
         for n in &model.physical_names {
             buf.extend_from_slice(format!("{} {} \"{}\"\n", n.dim, n.tag, n.name).as_bytes());
         }
@@ -55,10 +53,7 @@ pub fn write_msh22(mut w: impl Write, model: &MshModel) -> Result<(), WriteError
     buf.extend_from_slice(format!("$Elements\n{}\n", model.n_elements()).as_bytes());
     for block in &model.element_blocks {
         let code = block.element_type.gmsh_code() as u64;
-        let phys = physical
-            .get(&(block.entity_dim, block.entity_tag))
-            .copied()
-            .unwrap_or(0);
+        let phys = physical.get(&(block.entity_dim, block.entity_tag)).copied().unwrap_or(0);
         let k = block.element_type.n_nodes();
         let mut order: Vec<usize> = (0..block.tags.len()).collect();
         if !block.tags.is_sorted() {
@@ -117,23 +112,10 @@ fn first_physical_per_entity(model: &MshModel) -> HashMap<(u8, EntityTag), i32> 
 }
 
 /// A data section: name, time, then step, components, count (3 integer tags).
-fn write_view(
-    w: &mut impl Write,
-    buf: &mut Vec<u8>,
-    section: &str,
-    view: &DataView,
-) -> Result<(), WriteError> {
+fn write_view(w: &mut impl Write, buf: &mut Vec<u8>, section: &str, view: &DataView) -> Result<(), WriteError> {
     buf.extend_from_slice(format!("${section}\n1\n\"{}\"\n1\n", view.name).as_bytes());
     push_f64(buf, view.time);
-    buf.extend_from_slice(
-        format!(
-            "\n3\n{}\n{}\n{}\n",
-            view.step,
-            view.n_components,
-            view.tags.len()
-        )
-        .as_bytes(),
-    );
+    buf.extend_from_slice(format!("\n3\n{}\n{}\n{}\n", view.step, view.n_components, view.tags.len()).as_bytes());
     let nc = view.n_components;
     for (i, &tag) in view.tags.iter().enumerate() {
         push_u64(buf, tag);
@@ -164,17 +146,8 @@ mod tests {
     fn structure_and_tags() {
         let mesh = fixtures::square(2);
         let mut m = MshModel::from_surface(&mesh);
-        m.surfaces[0] = SurfaceEntity {
-            tag: 1,
-            bounding_curves: vec![],
-            physical_tags: vec![7, 8],
-        };
-        m.element_data.push(DataView::contiguous(
-            "marker",
-            1,
-            (0..8).map(f64::from).collect(),
-            1,
-        ));
+        m.surfaces[0] = SurfaceEntity { tag: 1, bounding_curves: vec![], physical_tags: vec![7, 8] };
+        m.element_data.push(DataView::contiguous("marker", 1, (0..8).map(f64::from).collect(), 1));
         let mut v = Vec::new();
         write_msh22(&mut v, &m).unwrap();
         let text = String::from_utf8(v).unwrap();
@@ -188,10 +161,7 @@ mod tests {
         let t = mesh.triangles[0].map(|v| v.0 + 1);
         assert_eq!(els[1], format!("1 2 2 7 1 {} {} {}", t[0], t[1], t[2]));
         let ed = section(&text, "ElementData");
-        assert_eq!(
-            &ed[..8],
-            ["1", "\"marker\"", "1", "0.0", "3", "0", "1", "8"]
-        );
+        assert_eq!(&ed[..8], ["1", "\"marker\"", "1", "0.0", "3", "0", "1", "8"]);
         assert_eq!(ed[8 + 7], "8 7.0");
     }
 
@@ -213,10 +183,7 @@ mod tests {
         let mut bad = tets;
         bad.tets[0][3] = crate::mesh::VertexId(9);
         let mut v = Vec::new();
-        assert!(matches!(
-            write_volume_msh22(&mut v, &bad),
-            Err(WriteError::MissingNode { node: 10, .. })
-        ));
+        assert!(matches!(write_volume_msh22(&mut v, &bad), Err(WriteError::MissingNode { node: 10, .. })));
         assert!(v.is_empty());
     }
 }

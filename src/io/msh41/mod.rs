@@ -76,6 +76,6 @@
 //!   `%.16g`; we write them sorted and with shortest round-trip precision.
 
 pub mod discrete;
-pub mod read;
 pub mod model;
+pub mod read;
 pub mod write;

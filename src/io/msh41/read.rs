@@ -38,8 +38,8 @@
 //! (see [`prepare_nodes`]). Each error names the line (byte offset).
 
 use crate::io::msh_common::{
-    NodeTable, TETRAHEDRON, TRIANGLE, check_line_done, element_info, end_marker, keep_element,
-    lookup_nodes, prepare_nodes, read_i32, read_u64, skip_items,
+    NodeTable, TETRAHEDRON, TRIANGLE, check_line_done, element_info, end_marker, keep_element, lookup_nodes,
+    prepare_nodes, read_i32, read_u64, skip_items,
 };
 use crate::io::source::{Endian, MeshSink, Source, capacity_hint, show};
 use crate::io::{Format, IoError, Location};
@@ -120,7 +120,11 @@ struct Block {
 }
 
 /// Read a block header (`dim tag kind count`).
-fn read_block<R: BufRead>(src: &mut Source<R>, binary: Option<Endian>, what: &str) -> Result<(Block, Location), IoError> {
+fn read_block<R: BufRead>(
+    src: &mut Source<R>,
+    binary: Option<Endian>,
+    what: &str,
+) -> Result<(Block, Location), IoError> {
     match binary {
         None => {
             let dim = src.expect_i64(&format!("the entity dimension of a {what} block"))?;
@@ -142,7 +146,11 @@ fn read_block<R: BufRead>(src: &mut Source<R>, binary: Option<Endian>, what: &st
 }
 
 /// Read the four `size_t` of a section header.
-fn read_section_header<R: BufRead>(src: &mut Source<R>, binary: Option<Endian>, what: &str) -> Result<[u64; 4], IoError> {
+fn read_section_header<R: BufRead>(
+    src: &mut Source<R>,
+    binary: Option<Endian>,
+    what: &str,
+) -> Result<[u64; 4], IoError> {
     let mut h = [0u64; 4];
     for v in &mut h {
         *v = match binary {
@@ -252,7 +260,16 @@ fn read_nodes<R: BufRead>(
                     src.read_exact(&mut buf[..8 * (3 + n_param)], "node coordinates")?;
                     let d = |k: usize| {
                         let o = 8 * k;
-                        e.f64([buf[o], buf[o + 1], buf[o + 2], buf[o + 3], buf[o + 4], buf[o + 5], buf[o + 6], buf[o + 7]])
+                        e.f64([
+                            buf[o],
+                            buf[o + 1],
+                            buf[o + 2],
+                            buf[o + 3],
+                            buf[o + 4],
+                            buf[o + 5],
+                            buf[o + 6],
+                            buf[o + 7],
+                        ])
                     };
                     ([d(0), d(1), d(2)], at)
                 }
@@ -269,7 +286,10 @@ fn read_nodes<R: BufRead>(
 }
 
 /// A node block header.
-fn read_node_block_header<R: BufRead>(src: &mut Source<R>, binary: Option<Endian>) -> Result<(Block, Location), IoError> {
+fn read_node_block_header<R: BufRead>(
+    src: &mut Source<R>,
+    binary: Option<Endian>,
+) -> Result<(Block, Location), IoError> {
     read_block(src, binary, "node")
 }
 
@@ -319,7 +339,16 @@ fn read_elements<R: BufRead>(
                             src.read_exact(&mut buf[..8 * (1 + nn)], "an element record")?;
                             let u = |k: usize| {
                                 let o = 8 * k;
-                                e.u64([buf[o], buf[o + 1], buf[o + 2], buf[o + 3], buf[o + 4], buf[o + 5], buf[o + 6], buf[o + 7]])
+                                e.u64([
+                                    buf[o],
+                                    buf[o + 1],
+                                    buf[o + 2],
+                                    buf[o + 3],
+                                    buf[o + 4],
+                                    buf[o + 5],
+                                    buf[o + 6],
+                                    buf[o + 7],
+                                ])
                             };
                             for (k, t) in node_tags.iter_mut().take(nn).enumerate() {
                                 *t = u(k + 1);
@@ -383,7 +412,12 @@ mod tests {
         let bad = ASCII.replace("3 3 7 8", "3 3 7 6");
         let e = read(bad.as_bytes(), &lim()).unwrap_err();
         assert_eq!(e.kind(), "index-out-of-range");
-        assert!(e.to_string().contains("element 3") && e.to_string().contains("vertex 6") && e.to_string().contains("line 30"), "{e}");
+        assert!(
+            e.to_string().contains("element 3")
+                && e.to_string().contains("vertex 6")
+                && e.to_string().contains("line 30"),
+            "{e}"
+        );
         let bad = ASCII.replace("0 1 0 0.1 0.2", "0 1 0 0.1 x");
         let e = read(bad.as_bytes(), &lim()).unwrap_err();
         assert!(e.to_string().contains("line 20") && e.to_string().contains("parametric coordinate"), "{e}");
@@ -402,7 +436,10 @@ mod tests {
         let e = read(DUPLICATE.as_bytes(), &lim()).unwrap_err();
         assert_eq!(e.kind(), "parse-error");
         let msg = e.to_string();
-        assert!(msg.contains("node tag 3 is defined twice") && msg.contains("line 13") && msg.contains("line 14"), "{msg}");
+        assert!(
+            msg.contains("node tag 3 is defined twice") && msg.contains("line 13") && msg.contains("line 14"),
+            "{msg}"
+        );
         // The same coordinates twice are tolerated (the first wins, as in Gmsh).
         let same = DUPLICATE.replace("5 5 5", "0 1 0");
         let m = read(same.as_bytes(), &lim()).unwrap();
@@ -415,10 +452,16 @@ mod tests {
         let bad = ASCII.replace("$Nodes\n2 5 3 1000", "$Nodes\n2 6 3 1000");
         let e = read(bad.as_bytes(), &lim()).unwrap_err();
         assert_eq!(e.kind(), "parse-error");
-        assert!(e.to_string().contains("declares 6 nodes, but its blocks hold 5") && e.to_string().contains("line 10"), "{e}");
+        assert!(
+            e.to_string().contains("declares 6 nodes, but its blocks hold 5") && e.to_string().contains("line 10"),
+            "{e}"
+        );
         let bad = ASCII.replace("$Elements\n3 4 1 4", "$Elements\n3 3 1 4");
         let e = read(bad.as_bytes(), &lim()).unwrap_err();
-        assert!(e.to_string().contains("declares 3 elements, but its blocks hold 4") && e.to_string().contains("line 25"), "{e}");
+        assert!(
+            e.to_string().contains("declares 3 elements, but its blocks hold 4") && e.to_string().contains("line 25"),
+            "{e}"
+        );
     }
 
     #[test]
@@ -429,7 +472,11 @@ mod tests {
         assert!(e.to_string().contains("node tag 1000 is outside") && e.to_string().contains("line 15"), "{e}");
         let bad = ASCII.replace("$Elements\n3 4 1 4", "$Elements\n3 4 2 4");
         let e = read(bad.as_bytes(), &lim()).unwrap_err();
-        assert!(e.to_string().contains("element tag 1 is outside the section header's range [2, 4]") && e.to_string().contains("line 27"), "{e}");
+        assert!(
+            e.to_string().contains("element tag 1 is outside the section header's range [2, 4]")
+                && e.to_string().contains("line 27"),
+            "{e}"
+        );
         let bad = ASCII.replace("4 3 1000 7 8", "5 3 1000 7 8");
         let e = read(bad.as_bytes(), &lim()).unwrap_err();
         assert!(e.to_string().contains("element tag 5 is outside") && e.to_string().contains("line 32"), "{e}");
@@ -437,8 +484,7 @@ mod tests {
 
     #[test]
     fn unknown_element_type_is_unsupported_naming_type_and_block() {
-        let bad = ASCII
-            .replace("$Elements\n3 4 1 4\n", "$Elements\n4 5 1 5\n0 1 200 1\n5 2 3 4 5 6\n");
+        let bad = ASCII.replace("$Elements\n3 4 1 4\n", "$Elements\n4 5 1 5\n0 1 200 1\n5 2 3 4 5 6\n");
         let e = read(bad.as_bytes(), &lim()).unwrap_err();
         assert_eq!(e.kind(), "unsupported");
         let msg = e.to_string();
