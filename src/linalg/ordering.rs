@@ -79,6 +79,8 @@ pub fn nested_dissection(a: SymbolicSparseColMatRef<'_, usize>, block: usize) ->
         let mut options = [0i32; metis_sys::METIS_NOPTIONS as usize];
         let mut xadj = xadj;
         let mut adjncy = adjncy;
+        // The crate denies unsafe code; this FFI call is the one exception.
+        #[allow(unsafe_code)]
         // SAFETY: the arrays have the sizes METIS expects (nvtxs + 1,
         // xadj[nvtxs], nvtxs, nvtxs); options are the defaults set by METIS.
         unsafe {
