@@ -4,8 +4,10 @@
 mod common;
 
 use meshatlas::crossfield::{
-    CrossfieldOptions, compute_crossfield, write_crossfield_msh, write_crossfield_vtu, write_singularities_json,
+    CrossfieldOptions, compute_crossfield, write_crossfield_msh, write_crossfield_msh_as, write_crossfield_vtu,
+    write_singularities_json,
 };
+use meshatlas::io::msh_output::{MshVersion, OutputOptions};
 use meshatlas::mesh::{EdgeId, Topology, fixtures};
 use meshatlas::progress::Progress;
 use std::fs::File;
@@ -63,4 +65,48 @@ print(json.dumps({
     assert_eq!(out["views"]["norm"][2], 1);
     assert_eq!(out["json_sum"], 1.0);
     assert_eq!(out["json_n"], field.singularities.len());
+}
+
+/// `crossfield.msh` as MSH 2.2 and as binary 4.1 (the `output` options):
+/// Gmsh and meshio read the same triangles and element data as from the
+/// default ASCII 4.1.
+#[test]
+fn crossfield_msh_in_2_2_and_binary_opens_in_meshio_and_gmsh() {
+    let mesh = fixtures::disk(6);
+    let topo = Topology::new(&mesh);
+    let aligned: Vec<bool> = (0..topo.n_edges()).map(|e| topo.is_boundary_edge(EdgeId::new(e))).collect();
+    let field = compute_crossfield(&mesh, &topo, &aligned, &CrossfieldOptions::default(), &Progress::none()).unwrap();
+    let dir = common::scratch("crossfield_artifacts", "msh_variants");
+    let variants = [
+        ("v22.msh", OutputOptions { msh_version: MshVersion::V22, msh_binary: false }, "2.2"),
+        ("v41_binary.msh", OutputOptions { msh_version: MshVersion::V41, msh_binary: true }, "4.1"),
+    ];
+    let script = r#"
+f = sys.argv[1]
+head = open(f, 'rb').read(40).split(b'\n')[1].decode()
+m = meshio.read(f)
+gmsh.initialize(); gmsh.option.setNumber('General.Terminal', 0)
+gmsh.open(f)
+_, etags, _ = gmsh.model.mesh.getElements(2)
+views = {}
+for t in gmsh.view.getTags():
+    name = gmsh.option.getString(f'View[{gmsh.view.getIndex(t)}].Name')
+    kind, tags, data, time, nc = gmsh.view.getModelData(t, 0)
+    views[name] = [len(tags), nc, float(np.asarray(data).sum())]
+gmsh.finalize()
+print(json.dumps({'head': head, 'n_tri': int(len(m.cells_dict['triangle'])), 'n_gmsh_tri': int(sum(len(e) for e in etags)),
+                  'norm_sum': float(np.asarray(m.cell_data['norm'][0]).sum()), 'views': views}))
+"#;
+    let norm_sum: f64 = field.norm_per_face.iter().sum();
+    for (name, opts, version) in variants {
+        let file = dir.join(name);
+        write_crossfield_msh_as(&field, &mesh, File::create(&file).unwrap(), &opts).unwrap();
+        let out = common::python(script, &[common::path_str(&file)]);
+        assert!(out["head"].as_str().unwrap().starts_with(version), "{name}: {out}");
+        assert_eq!(out["n_tri"], mesh.n_faces(), "{name}");
+        assert_eq!(out["n_gmsh_tri"], mesh.n_faces(), "{name}");
+        assert!((out["norm_sum"].as_f64().unwrap() - norm_sum).abs() < 1e-9, "{name}: meshio norm");
+        assert_eq!(out["views"]["norm"][0], mesh.n_faces(), "{name}: gmsh view");
+        assert!((out["views"]["norm"][2].as_f64().unwrap() - norm_sum).abs() < 1e-9, "{name}: gmsh norm");
+    }
 }

@@ -23,7 +23,7 @@ pub mod system;
 pub mod transfer;
 
 pub use compute::{compute_crossfield, validate_options};
-pub use output::{write_crossfield_msh, write_crossfield_vtu, write_singularities_json};
+pub use output::{write_crossfield_msh, write_crossfield_msh_as, write_crossfield_vtu, write_singularities_json};
 
 use crate::geom::Vec3;
 use crate::linalg::LinalgError;

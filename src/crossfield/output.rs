@@ -17,8 +17,8 @@
 use super::Crossfield;
 use crate::geom::Vec3;
 use crate::io::WriteError;
+use crate::io::msh_output::{OutputOptions, write_msh};
 use crate::io::msh41::model::{DataView, MshModel};
-use crate::io::msh41::write::{Msh41Options, write_msh41};
 use crate::io::vtu::{DataArray, VtuMesh, VtuOptions, write_vtu};
 use crate::mesh::{FaceId, TriMesh};
 use serde::Serialize;
@@ -106,6 +106,20 @@ pub fn write_crossfield_vtu(field: &Crossfield, mesh: &TriMesh, w: impl Write) -
 /// # Errors
 /// [`WriteError`] when the sizes do not match or on I/O failure.
 pub fn write_crossfield_msh(field: &Crossfield, mesh: &TriMesh, w: impl Write) -> Result<(), WriteError> {
+    write_crossfield_msh_as(field, mesh, w, &OutputOptions::default())
+}
+
+/// Write `crossfield.msh` in the MSH variant `opts` selects (4.1 ASCII or
+/// binary, or 2.2).
+///
+/// # Errors
+/// [`WriteError`] when the sizes do not match or on I/O failure.
+pub fn write_crossfield_msh_as(
+    field: &Crossfield,
+    mesh: &TriMesh,
+    w: impl Write,
+    opts: &OutputOptions,
+) -> Result<(), WriteError> {
     check_sizes(field, mesh)?;
     let mut model = MshModel::from_surface(mesh);
     let flat = |v: &[Vec3]| v.iter().flat_map(|x| [x.x, x.y, x.z]).collect::<Vec<f64>>();
@@ -114,5 +128,5 @@ pub fn write_crossfield_msh(field: &Crossfield, mesh: &TriMesh, w: impl Write) -
         DataView::contiguous("cross_v", 3, flat(&cross_v(field, mesh)), 1),
         DataView::contiguous("norm", 1, field.norm_per_face.clone(), 1),
     ];
-    write_msh41(w, &model, &Msh41Options::default())
+    write_msh(w, &model, opts)
 }

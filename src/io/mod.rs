@@ -24,6 +24,7 @@ pub mod load;
 pub mod msh22;
 pub mod msh41;
 pub mod msh_common;
+pub mod msh_output;
 pub mod obj;
 pub mod ply;
 pub mod sizes;

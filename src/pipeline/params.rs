@@ -10,6 +10,7 @@ use serde::{Deserialize, Serialize};
 use crate::atlas::{AtlasError, AtlasOptions};
 use crate::crossfield::{CrossfieldError, CrossfieldOptions, validate_options};
 use crate::frames::{FramesError, FramesOptions};
+use crate::io::msh_output::OutputOptions;
 use crate::io::{IoError, LoadOptions};
 
 /// Parameters of one pipeline run.
@@ -31,6 +32,8 @@ pub struct PipelineParams {
     pub crossfield: CrossfieldOptions,
     /// Options of the frames stage.
     pub frames: FramesOptions,
+    /// How the mesh artifacts are written (MSH version, binary).
+    pub output: OutputOptions,
 }
 
 /// A computation stage that can follow load and repair; stages run in this
@@ -181,6 +184,11 @@ pub fn parse_params(json: &[u8]) -> Result<PipelineParams, ParamsError> {
             ParamsError { field: Some(format!("frames.{name}")), message: reason, syntax: false }
         }
         other => ParamsError { field: Some("frames".into()), message: other.to_string(), syntax: false },
+    })?;
+    params.output.validate().map_err(|(name, reason)| ParamsError {
+        field: Some(format!("output.{name}")),
+        message: reason,
+        syntax: false,
     })?;
     Ok(params)
 }

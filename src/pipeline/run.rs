@@ -19,7 +19,8 @@ use std::path::{Path, PathBuf};
 use std::time::Instant;
 
 use crate::io::load::{finish, read_raw};
-use crate::io::msh41::write::write_surface_msh41;
+use crate::io::msh_output::write_msh;
+use crate::io::msh41::model::MshModel;
 use crate::io::vtu::write_surface_vtu;
 use crate::io::{Format, IoError, LoadOptions, LoadedMesh, RawMesh, WriteError};
 use crate::mesh::{TetMesh, TriMesh};
@@ -205,7 +206,7 @@ pub fn run_pipeline(
     let wp = progress.stage("write", 0.9, 1.0);
     let surface = &products.surface;
     let written = timed(&mut timings, "write", || -> Result<Vec<ArtifactInfo>, PipelineError> {
-        let msh = write_file(out_dir, "mesh.msh", |w| write_surface_msh41(w, surface))?;
+        let msh = write_file(out_dir, "mesh.msh", |w| write_msh(w, &MshModel::from_surface(surface), &params.output))?;
         wp.set(0.5);
         let vtu = write_file(out_dir, "mesh.vtu", |w| write_surface_vtu(w, surface))?;
         Ok(vec![msh, vtu])

@@ -11,7 +11,7 @@ use std::path::Path;
 use crate::atlas::features::{Features, detect_features};
 use crate::atlas::{AtlasError, build_atlas, write_atlas_msh, write_atlas_uv_vtu, write_atlas_vtu};
 use crate::crossfield::{
-    CrossfieldError, compute_crossfield, write_crossfield_msh, write_crossfield_vtu, write_singularities_json,
+    CrossfieldError, compute_crossfield, write_crossfield_msh_as, write_crossfield_vtu, write_singularities_json,
 };
 use crate::frames::{FramesError, compute_frame_field, write_frames_vtu, write_singular_edges_vtu};
 use crate::io::WriteError;
@@ -99,7 +99,7 @@ pub fn run_crossfield(
     let artifacts = vec![
         write_artifact(out_dir, "crossfield.vtu", |w| write_crossfield_vtu(&field, surface, w))?,
         write_artifact(out_dir, "singularities.json", |w| Ok(write_singularities_json(&field, w)?))?,
-        write_artifact(out_dir, "crossfield.msh", |w| write_crossfield_msh(&field, surface, w))?,
+        write_artifact(out_dir, "crossfield.msh", |w| write_crossfield_msh_as(&field, surface, w, &params.output))?,
     ];
     let write_seconds = write_start.elapsed().as_secs_f64();
     let summary = serde_json::to_value(&field.report)

@@ -100,3 +100,24 @@ async fn stage_options_are_validated_at_submission() {
         assert_eq!(body["field"], field, "{params}: {body:#}");
     }
 }
+
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn output_options_choose_the_msh_version_of_the_mesh_artifacts() {
+    let s = Server::start(Arc::new(PipelineExecutor), |c, _| c.workers = 1).await;
+    let mesh = meshatlas::mesh::fixtures::icosphere(2);
+    let params = r#"{"stages":["crossfield"],"output":{"msh_version":"2.2"}}"#;
+    let q = format!("?filename=ball.stl&params={}", urlenc(params));
+    let job = s.submit_ok(&q, "application/octet-stream", fixtures::stl_binary(&mesh)).await;
+    let job = s.wait_final(job["id"].as_str().unwrap()).await;
+    assert_eq!(job["state"], "succeeded", "{job:#}");
+    for name in ["mesh.msh", "crossfield.msh"] {
+        let bytes = download(&s, &job, name).await;
+        assert!(bytes.starts_with(b"$MeshFormat\n2.2 0 8\n"), "{name}: {:?}", String::from_utf8_lossy(&bytes[..30]));
+    }
+    // Binary output exists for MSH 4.1 only: the combination is refused at submission.
+    let bad = format!("?params={}", urlenc(r#"{"output":{"msh_version":"2.2","msh_binary":true}}"#));
+    let r = s.submit_raw(&bad, "application/octet-stream", fixtures::stl_binary(&mesh)).await;
+    assert_eq!(r.status(), 422);
+    let body: Value = r.json().await.unwrap();
+    assert_eq!(body["field"], "output.msh_binary", "{body}");
+}
