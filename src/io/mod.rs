@@ -12,8 +12,8 @@
 //! count, never panic on hostile bytes, enforce the triangle cap while
 //! reading, name the line or byte offset of every error, read MSH 2.2 and
 //! parametric MSH 4.1, and leave welding to the repair step so that it can
-//! be counted. None of the crates measured does all of that
-//! (`/work/shared/DEPENDENCIES.md`). The shared plumbing is in [`source`].
+//! be counted. None of the crates measured does all of that. The shared
+//! plumbing is in [`source`].
 //!
 //! Writing: MSH 4.1 ([`msh41::write`]), MSH 2.2 ([`msh22::write`]), VTU
 //! ([`vtu`]) and binary STL ([`stl_write`]); errors are [`WriteError`].

@@ -7,7 +7,7 @@
 //! same triplet sequence but new values is rebuilt without sorting again, and
 //! a factorization's symbolic phase is reused ([`CholeskySolver::refactor`]).
 //!
-//! Solvers (measured in `../shared/DEPENDENCIES.md` on 2 cores): faer sparse
+//! Solvers (chosen by measurement on 2 cores): faer sparse
 //! LU for non-symmetric systems (mean value coordinates), faer sparse LLᵀ for
 //! SPD systems, both with `Par::Seq` inside job workers.
 

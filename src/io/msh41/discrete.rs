@@ -3,7 +3,7 @@
 //! optional `(u, v)` per patch vertex.
 //!
 //! What the builder produces (the layout Gmsh writes after
-//! `classifySurfaces` + `createGeometry`, see `shared/data/gmsh/FORMAT.md`):
+//! `classifySurfaces` + `createGeometry`):
 //! - point entity `k + 1` for the `k`-th corner, curve `k + 1` for the
 //!   `k`-th curve, surface `k + 1` for the `k`-th patch;
 //! - every vertex used by an entity is classified on the lowest-dimensional
