@@ -50,6 +50,13 @@ struct ServeArgs {
         value_parser = RangedU64ValueParser::<usize>::new().range(1..=1024)
     )]
     workers: usize,
+    /// Threads of the numerical pool, shared by the running jobs: one job
+    /// alone uses them all (0 = one per core; at least --workers; 0–1024).
+    #[arg(
+        long, env = "MESHATLAS_THREADS", default_value_t = 0,
+        value_parser = RangedU64ValueParser::<usize>::new().range(0..=1024)
+    )]
+    threads: usize,
     /// Largest accepted upload in bytes (413 beyond; at least 1).
     #[arg(
         long, env = "MESHATLAS_MAX_UPLOAD_BYTES", default_value_t = 512 * 1024 * 1024,
@@ -207,6 +214,7 @@ fn main() -> std::process::ExitCode {
 fn serve(args: ServeArgs) -> Result<(), String> {
     let config = JobsConfig {
         workers: args.workers.max(1),
+        threads: args.threads,
         max_queued: args.max_queued,
         job_timeout: Duration::from_secs_f64(args.job_timeout_secs),
         max_attempts: args.max_attempts.max(1),

@@ -42,8 +42,12 @@ use super::store::{QueueHead, Store, StoreError};
 pub struct JobsConfig {
     /// Directory for the database, uploads and artifacts.
     pub data_dir: PathBuf,
-    /// Jobs run at the same time (rayon pool size). Default 1.
+    /// Jobs run at the same time. Default 1.
     pub workers: usize,
+    /// Threads of the numerical (rayon) pool that the running jobs share:
+    /// a job's parallel loops use every thread not busy with another job.
+    /// 0 = one per core. At least `workers`. Default 0.
+    pub threads: usize,
     /// Most jobs waiting in the queue; submissions beyond get 429. Default 64.
     pub max_queued: usize,
     /// Wall-time limit of one job attempt. Default 1 h.
@@ -73,6 +77,7 @@ impl JobsConfig {
         Self {
             data_dir: data_dir.into(),
             workers: 1,
+            threads: 0,
             max_queued: 64,
             job_timeout: Duration::from_secs(3600),
             max_attempts: 3,

@@ -96,6 +96,14 @@ pub struct Deletion {
     pub not_removed: Vec<String>,
 }
 
+/// Threads of the numerical pool: `asked`, or one per core when 0, and never
+/// fewer than the jobs that run at once (each job holds one thread while it
+/// runs; its parallel loops borrow the idle ones).
+fn pool_threads(asked: usize, workers: usize) -> usize {
+    let cores = std::thread::available_parallelism().map_or(1, std::num::NonZeroUsize::get);
+    if asked == 0 { cores } else { asked }.max(workers)
+}
+
 /// Handle to the durable job service; cheap to clone.
 #[derive(Clone)]
 pub struct JobService {
@@ -131,14 +139,15 @@ impl JobService {
         }
         remove_orphans(&store, &jobs_dir)?;
         let workers = config.workers.max(1);
+        let threads = pool_threads(config.threads, workers);
         let pool = rayon::ThreadPoolBuilder::new()
-            .num_threads(workers)
+            .num_threads(threads)
             .thread_name(|i| format!("meshatlas-worker-{i}"))
             .panic_handler(|p| tracing::error!(panic = %panic_message(p.as_ref()), "panic escaped a job"))
             .build()
             .map_err(|e| JobsError::Internal(format!("cannot build the worker pool: {e}")))?;
         let inner = Arc::new(Inner {
-            config: JobsConfig { workers, ..config },
+            config: JobsConfig { workers, threads, ..config },
             store,
             executor,
             pool,
@@ -165,7 +174,7 @@ impl JobService {
                 .spawn(move || super::retention::retention_loop(r, max_age))
                 .map_err(|e| JobsError::Internal(format!("cannot start the retention sweep: {e}")))?;
         }
-        info!(data_dir = %inner.config.data_dir.display(), workers, "job service started");
+        info!(data_dir = %inner.config.data_dir.display(), workers, threads, "job service started");
         Ok(Self { inner, admission: Arc::new(Mutex::new(())) })
     }
 

@@ -292,3 +292,33 @@ async fn a_tenant_sees_only_its_jobs_and_a_foreign_id_is_not_found() {
     assert_eq!(ids(svc.list(10, None, Some("b".into())).await.unwrap()), vec![b.id]);
     assert_eq!(svc.list(10, None, None).await.unwrap().jobs.len(), 3);
 }
+
+/// The numerical pool is separate from the number of jobs at a time: one
+/// job alone sees every thread (the service's parallel loops are not
+/// limited to one core by `workers = 1`).
+#[tokio::test]
+async fn one_job_at_a_time_still_gets_every_pool_thread() {
+    for (threads, expected) in [(2, 2), (3, 3), (0, std::thread::available_parallelism().unwrap().get())] {
+        let dir = tempfile::tempdir().unwrap();
+        let exec = |_: &JobInput, _: &Progress| -> Result<JobOutcome, ExecError> {
+            // What a parallel loop inside the job may use.
+            let seen = rayon::current_num_threads();
+            let distinct: std::collections::HashSet<_> =
+                rayon::broadcast(|_| std::thread::current().id()).into_iter().collect();
+            Ok(JobOutcome {
+                summary: serde_json::json!({"threads": seen, "distinct": distinct.len()}),
+                stage_seconds: Default::default(),
+                artifacts: vec![],
+            })
+        };
+        let cfg = JobsConfig { workers: 1, threads, ..config(dir.path()) };
+        let svc = JobService::start(cfg, Arc::new(exec)).unwrap();
+        assert_eq!(svc.config().threads, expected);
+        let rec = submit(&svc).await.unwrap();
+        let done = wait_for(&svc, rec.id, |r| r.state.is_final()).await;
+        assert_eq!(done.state, JobState::Succeeded, "{done:?}");
+        let summary = done.summary.unwrap();
+        assert_eq!(summary["threads"], expected, "threads = {threads}");
+        assert_eq!(summary["distinct"], expected, "threads = {threads}");
+    }
+}
