@@ -99,18 +99,21 @@ async fn cancel_and_delete_stop_running_jobs_within_a_second() {
     assert_eq!(running["stage"], "spin");
     s.wait_until(&b, |j| j["state"] == "running").await;
 
+    // 200 / 204 say the job stopped within the service's wait (1 s; a stop
+    // still pending answers 202). The wall-clock bounds below only catch a
+    // hang: a busy test host adds its own delay to the store and file work.
     let t = Instant::now();
     let r = s.client.post(s.url(&format!("/v1/jobs/{a}/cancel"))).send().await.unwrap();
     assert_eq!(r.status(), 200);
     let job: Value = r.json().await.unwrap();
-    assert!(t.elapsed() < Duration::from_secs(1), "cancel took {:?}", t.elapsed());
+    assert!(t.elapsed() < Duration::from_secs(3), "cancel took {:?}", t.elapsed());
     assert_eq!(job["state"], "cancelled");
     assert_eq!(s.get_job(&a).await["state"], "cancelled");
 
     let t = Instant::now();
     let r = s.client.delete(s.url(&format!("/v1/jobs/{b}"))).send().await.unwrap();
     assert_eq!(r.status(), 204);
-    assert!(t.elapsed() < Duration::from_secs(1), "delete took {:?}", t.elapsed());
+    assert!(t.elapsed() < Duration::from_secs(3), "delete took {:?}", t.elapsed());
     let r = s.client.get(s.url(&format!("/v1/jobs/{b}"))).send().await.unwrap();
     assert_eq!(r.status(), 404);
     assert!(!s.dir.path().join("jobs").join(&b).exists(), "files removed");
