@@ -8,13 +8,15 @@
 //!
 //! Dependencies point downward:
 //! `geom ← mesh ← fem ← stages ← pipeline ← jobs ← http ← main`,
-//! with `io`, `linalg` and `progress` used by the core.
+//! with `io`, `linalg`, `progress` and `failure` (the stable failure kinds)
+//! used by the core.
 
 // Numeric kernels index several parallel arrays with one loop index.
 #![allow(clippy::needless_range_loop)]
 // `!(x > 0.0)` is used on purpose: it also rejects NaN.
 #![allow(clippy::neg_cmp_op_on_partial_ord)]
 
+pub mod failure;
 pub mod geom;
 pub mod linalg;
 pub mod mesh;

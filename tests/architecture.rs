@@ -16,6 +16,7 @@ const CORE: &[&str] = &[
     "src/crossfield",
     "src/frames",
     "src/progress.rs",
+    "src/failure.rs",
 ];
 const FORBIDDEN_IN_CORE: &[&str] =
     &["axum", "tokio", "tower", "hyper", "reqwest", "rusqlite", "crate::jobs", "crate::http", "crate::pipeline"];

@@ -8,6 +8,7 @@
 //! `perf_binary_stl_2m_triangles` (ignored) measures reading and welding a
 //! 2M-triangle binary STL: `cargo test --release --test io_readers perf -- --ignored --nocapture`.
 
+use meshatlas::failure::FailureKind;
 use meshatlas::geom::Vec3;
 use meshatlas::io::{Format, LoadOptions, load_bytes, load_path, load_reader};
 use meshatlas::mesh::{TriMesh, fixtures};
@@ -586,18 +587,18 @@ fn seeds() -> Vec<(Format, Vec<u8>)> {
 }
 
 /// Kinds an error may have.
-const KINDS: &[&str] = &[
-    "empty-file",
-    "unknown-format",
-    "truncated",
-    "parse-error",
-    "non-finite-coordinate",
-    "coordinate-out-of-range",
-    "index-out-of-range",
-    "too-many-triangles",
-    "too-many-vertices",
-    "no-triangles",
-    "unsupported",
+const KINDS: &[FailureKind] = &[
+    FailureKind::EmptyFile,
+    FailureKind::UnknownFormat,
+    FailureKind::Truncated,
+    FailureKind::ParseError,
+    FailureKind::NonFiniteCoordinate,
+    FailureKind::CoordinateOutOfRange,
+    FailureKind::IndexOutOfRange,
+    FailureKind::TooManyTriangles,
+    FailureKind::TooManyVertices,
+    FailureKind::NoTriangles,
+    FailureKind::Unsupported,
 ];
 
 /// Load `bytes` every way; a panic or a slow case fails with the case named.
@@ -737,9 +738,12 @@ fn huge_declared_counts_are_rejected_without_allocating() {
     for (i, (f, b)) in cases.iter().enumerate() {
         let start = Instant::now();
         let e = load_bytes(b, Some(*f), &opts).unwrap_err();
-        assert!(["truncated", "too-many-triangles"].contains(&e.kind()), "case {i}: {e}");
+        assert!([FailureKind::Truncated, FailureKind::TooManyTriangles].contains(&e.kind()), "case {i}: {e}");
         let e2 = load_reader(&b[..], *f, &opts).unwrap_err();
-        assert!(["truncated", "too-many-triangles"].contains(&e2.kind()), "case {i} streamed: {e2}");
+        assert!(
+            [FailureKind::Truncated, FailureKind::TooManyTriangles].contains(&e2.kind()),
+            "case {i} streamed: {e2}"
+        );
         assert!(start.elapsed() < Duration::from_secs(1), "case {i}");
     }
 }

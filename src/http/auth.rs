@@ -31,6 +31,7 @@ use sha2::{Digest, Sha256};
 
 use super::AppState;
 use super::error::ApiError;
+use crate::failure::FailureKind;
 
 /// Shortest accepted token, in characters.
 pub const MIN_TOKEN_LEN: usize = 16;
@@ -280,7 +281,7 @@ fn challenge(invalid_token: bool) -> Response {
     } else {
         ("this route needs an `Authorization: Bearer TOKEN` header", format!("Bearer realm=\"{REALM}\""))
     };
-    let mut resp = ApiError::new("unauthorized", detail).into_response();
+    let mut resp = ApiError::new(FailureKind::Unauthorized, detail).into_response();
     if let Ok(v) = HeaderValue::from_str(&value) {
         resp.headers_mut().insert(header::WWW_AUTHENTICATE, v);
     }

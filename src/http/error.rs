@@ -19,6 +19,7 @@ use axum::response::{IntoResponse, Response};
 use serde_json::{Map, Value, json};
 use tracing::Instrument;
 
+use crate::failure::FailureKind;
 use crate::jobs::{JobError, JobsError};
 use crate::pipeline::ParamsError;
 
@@ -26,6 +27,11 @@ use crate::pipeline::ParamsError;
 pub const PROBLEM_TYPE_PREFIX: &str = "urn:meshatlas:problem:";
 /// Media type of error bodies.
 pub const PROBLEM_JSON: &str = "application/problem+json";
+/// The problem `type` of `kind`: `urn:meshatlas:problem:<kind>`.
+pub fn problem_type(kind: FailureKind) -> String {
+    format!("{PROBLEM_TYPE_PREFIX}{}", kind.as_str())
+}
+
 /// Header carrying the request id.
 pub const REQUEST_ID_HEADER: &str = "x-request-id";
 
@@ -46,7 +52,7 @@ pub struct ApiError(Box<Problem>);
 #[derive(Debug)]
 struct Problem {
     status: StatusCode,
-    kind: &'static str,
+    kind: FailureKind,
     title: &'static str,
     detail: String,
     extra: Map<String, Value>,
@@ -57,73 +63,72 @@ struct Problem {
     expose: bool,
 }
 
-/// Every stable failure kind with its status and title. Kinds from the mesh
+/// The HTTP status and the fixed title of `kind`. Kinds from the mesh
 /// readers (`parse-error`, `truncated`, …) and the job runner appear in job
-/// resources; the others are request errors. Unknown kinds are
-/// `internal-error` (500).
-const KINDS: &[(&str, StatusCode, &str)] = &[
-    ("bad-request", StatusCode::BAD_REQUEST, "Bad request"),
-    ("invalid-query", StatusCode::BAD_REQUEST, "Invalid query parameter"),
-    ("invalid-json", StatusCode::BAD_REQUEST, "Parameters are not valid JSON"),
-    ("invalid-multipart", StatusCode::BAD_REQUEST, "Malformed multipart body"),
-    ("missing-file", StatusCode::BAD_REQUEST, "No file in the upload"),
-    ("upload-interrupted", StatusCode::BAD_REQUEST, "The upload was interrupted"),
-    ("upload-timeout", StatusCode::REQUEST_TIMEOUT, "The upload stalled"),
-    ("uri-too-long", StatusCode::URI_TOO_LONG, "URI too long"),
-    ("headers-too-large", StatusCode::REQUEST_HEADER_FIELDS_TOO_LARGE, "Request headers too large"),
-    ("empty-file", StatusCode::BAD_REQUEST, "The uploaded file is empty"),
-    ("unauthorized", StatusCode::UNAUTHORIZED, "Authentication required"),
-    ("not-found", StatusCode::NOT_FOUND, "No such resource"),
-    ("job-not-found", StatusCode::NOT_FOUND, "No such job"),
-    ("artifact-not-found", StatusCode::NOT_FOUND, "No such artifact"),
-    ("method-not-allowed", StatusCode::METHOD_NOT_ALLOWED, "Method not allowed"),
-    ("upload-too-large", StatusCode::PAYLOAD_TOO_LARGE, "Upload too large"),
-    ("range-not-satisfiable", StatusCode::RANGE_NOT_SATISFIABLE, "Range not satisfiable"),
-    ("unsupported-media-type", StatusCode::UNSUPPORTED_MEDIA_TYPE, "Unsupported media type"),
-    ("unknown-format", StatusCode::UNSUPPORTED_MEDIA_TYPE, "Unknown mesh format"),
-    ("invalid-params", StatusCode::UNPROCESSABLE_ENTITY, "Invalid pipeline parameters"),
-    ("memory-budget-exceeded", StatusCode::UNPROCESSABLE_ENTITY, "Job exceeds the server's memory budget"),
-    ("queue-full", StatusCode::TOO_MANY_REQUESTS, "Job queue full"),
-    ("tenant-queue-full", StatusCode::TOO_MANY_REQUESTS, "Too many queued jobs for this tenant"),
-    ("insufficient-storage", StatusCode::INSUFFICIENT_STORAGE, "Insufficient storage"),
-    ("service-unavailable", StatusCode::SERVICE_UNAVAILABLE, "Service unavailable"),
-    // Job failures caused by the input (reader errors and limits).
-    ("truncated", StatusCode::UNPROCESSABLE_ENTITY, "Truncated mesh file"),
-    ("parse-error", StatusCode::UNPROCESSABLE_ENTITY, "Mesh file does not parse"),
-    ("non-finite-coordinate", StatusCode::UNPROCESSABLE_ENTITY, "Non-finite coordinate"),
-    ("coordinate-out-of-range", StatusCode::UNPROCESSABLE_ENTITY, "Coordinate out of range"),
-    ("index-out-of-range", StatusCode::UNPROCESSABLE_ENTITY, "Face index out of range"),
-    ("too-many-vertices", StatusCode::UNPROCESSABLE_ENTITY, "Too many vertices"),
-    ("invalid-mesh", StatusCode::UNPROCESSABLE_ENTITY, "Mesh violates an invariant after repair"),
-    ("invalid-options", StatusCode::UNPROCESSABLE_ENTITY, "Invalid load options"),
-    ("too-many-triangles", StatusCode::UNPROCESSABLE_ENTITY, "Too many triangles"),
-    ("no-triangles", StatusCode::UNPROCESSABLE_ENTITY, "No triangles in the mesh"),
-    ("unsupported", StatusCode::UNPROCESSABLE_ENTITY, "Unsupported mesh content"),
-    ("stage-failed", StatusCode::UNPROCESSABLE_ENTITY, "A pipeline stage failed on this input"),
-    ("no-valid-map", StatusCode::UNPROCESSABLE_ENTITY, "A patch has no valid one-to-one parameterization"),
-    ("non-orientable-surface", StatusCode::UNPROCESSABLE_ENTITY, "The surface cannot be oriented consistently"),
-    ("open-surface", StatusCode::UNPROCESSABLE_ENTITY, "The surface is not closed, so it encloses no volume"),
-    ("invalid-target-size", StatusCode::UNPROCESSABLE_ENTITY, "The volume target size gives no or too many tetrahedra"),
-    ("time-limit-exceeded", StatusCode::UNPROCESSABLE_ENTITY, "Job time limit exceeded"),
-    // Job failures caused by the server's storage (full disk, read-only).
-    ("storage-full", StatusCode::INSUFFICIENT_STORAGE, "The server's storage was full"),
-    ("storage-unavailable", StatusCode::SERVICE_UNAVAILABLE, "The server's storage did not accept writes"),
-    ("interrupted", StatusCode::SERVICE_UNAVAILABLE, "Job interrupted repeatedly"),
-    ("crashed-server", StatusCode::UNPROCESSABLE_ENTITY, "Job stopped the server twice"),
-    ("internal-error", StatusCode::INTERNAL_SERVER_ERROR, "Internal server error"),
-];
-
-/// The table entry of `kind` (`internal-error` when unknown), so a kind
-/// read from the database becomes `'static`.
-fn kind_entry(kind: &str) -> (&'static str, StatusCode, &'static str) {
-    let last = KINDS[KINDS.len() - 1];
-    KINDS.iter().copied().find(|(k, _, _)| *k == kind).unwrap_or(last)
+/// resources with the status a synchronous request would have got; the
+/// others are request errors. One exhaustive `match` (no catch-all arm), so
+/// a new [`FailureKind`] does not compile until it is mapped here.
+pub fn status_and_title(kind: FailureKind) -> (StatusCode, &'static str) {
+    use FailureKind as K;
+    match kind {
+        K::BadRequest => (StatusCode::BAD_REQUEST, "Bad request"),
+        K::InvalidQuery => (StatusCode::BAD_REQUEST, "Invalid query parameter"),
+        K::InvalidJson => (StatusCode::BAD_REQUEST, "Parameters are not valid JSON"),
+        K::InvalidMultipart => (StatusCode::BAD_REQUEST, "Malformed multipart body"),
+        K::MissingFile => (StatusCode::BAD_REQUEST, "No file in the upload"),
+        K::UploadInterrupted => (StatusCode::BAD_REQUEST, "The upload was interrupted"),
+        K::UploadTimeout => (StatusCode::REQUEST_TIMEOUT, "The upload stalled"),
+        K::UriTooLong => (StatusCode::URI_TOO_LONG, "URI too long"),
+        K::HeadersTooLarge => (StatusCode::REQUEST_HEADER_FIELDS_TOO_LARGE, "Request headers too large"),
+        K::EmptyFile => (StatusCode::BAD_REQUEST, "The uploaded file is empty"),
+        K::Unauthorized => (StatusCode::UNAUTHORIZED, "Authentication required"),
+        K::NotFound => (StatusCode::NOT_FOUND, "No such resource"),
+        K::JobNotFound => (StatusCode::NOT_FOUND, "No such job"),
+        K::ArtifactNotFound => (StatusCode::NOT_FOUND, "No such artifact"),
+        K::MethodNotAllowed => (StatusCode::METHOD_NOT_ALLOWED, "Method not allowed"),
+        K::UploadTooLarge => (StatusCode::PAYLOAD_TOO_LARGE, "Upload too large"),
+        K::RangeNotSatisfiable => (StatusCode::RANGE_NOT_SATISFIABLE, "Range not satisfiable"),
+        K::UnsupportedMediaType => (StatusCode::UNSUPPORTED_MEDIA_TYPE, "Unsupported media type"),
+        K::UnknownFormat => (StatusCode::UNSUPPORTED_MEDIA_TYPE, "Unknown mesh format"),
+        K::InvalidParams => (StatusCode::UNPROCESSABLE_ENTITY, "Invalid pipeline parameters"),
+        K::MemoryBudgetExceeded => (StatusCode::UNPROCESSABLE_ENTITY, "Job exceeds the server's memory budget"),
+        K::QueueFull => (StatusCode::TOO_MANY_REQUESTS, "Job queue full"),
+        K::TenantQueueFull => (StatusCode::TOO_MANY_REQUESTS, "Too many queued jobs for this tenant"),
+        K::InsufficientStorage => (StatusCode::INSUFFICIENT_STORAGE, "Insufficient storage"),
+        K::ServiceUnavailable => (StatusCode::SERVICE_UNAVAILABLE, "Service unavailable"),
+        // Job failures caused by the input (reader errors and limits).
+        K::Truncated => (StatusCode::UNPROCESSABLE_ENTITY, "Truncated mesh file"),
+        K::ParseError => (StatusCode::UNPROCESSABLE_ENTITY, "Mesh file does not parse"),
+        K::NonFiniteCoordinate => (StatusCode::UNPROCESSABLE_ENTITY, "Non-finite coordinate"),
+        K::CoordinateOutOfRange => (StatusCode::UNPROCESSABLE_ENTITY, "Coordinate out of range"),
+        K::IndexOutOfRange => (StatusCode::UNPROCESSABLE_ENTITY, "Face index out of range"),
+        K::TooManyVertices => (StatusCode::UNPROCESSABLE_ENTITY, "Too many vertices"),
+        K::InvalidMesh => (StatusCode::UNPROCESSABLE_ENTITY, "Mesh violates an invariant after repair"),
+        K::InvalidOptions => (StatusCode::UNPROCESSABLE_ENTITY, "Invalid load options"),
+        K::TooManyTriangles => (StatusCode::UNPROCESSABLE_ENTITY, "Too many triangles"),
+        K::NoTriangles => (StatusCode::UNPROCESSABLE_ENTITY, "No triangles in the mesh"),
+        K::Unsupported => (StatusCode::UNPROCESSABLE_ENTITY, "Unsupported mesh content"),
+        K::StageFailed => (StatusCode::UNPROCESSABLE_ENTITY, "A pipeline stage failed on this input"),
+        K::NoValidMap => (StatusCode::UNPROCESSABLE_ENTITY, "A patch has no valid one-to-one parameterization"),
+        K::NonOrientableSurface => (StatusCode::UNPROCESSABLE_ENTITY, "The surface cannot be oriented consistently"),
+        K::OpenSurface => (StatusCode::UNPROCESSABLE_ENTITY, "The surface is not closed, so it encloses no volume"),
+        K::InvalidTargetSize => {
+            (StatusCode::UNPROCESSABLE_ENTITY, "The volume target size gives no or too many tetrahedra")
+        }
+        K::TimeLimitExceeded => (StatusCode::UNPROCESSABLE_ENTITY, "Job time limit exceeded"),
+        // Job failures caused by the server's storage (full disk, read-only).
+        K::StorageFull => (StatusCode::INSUFFICIENT_STORAGE, "The server's storage was full"),
+        K::StorageUnavailable => (StatusCode::SERVICE_UNAVAILABLE, "The server's storage did not accept writes"),
+        K::Interrupted => (StatusCode::SERVICE_UNAVAILABLE, "Job interrupted repeatedly"),
+        K::CrashedServer => (StatusCode::UNPROCESSABLE_ENTITY, "Job stopped the server twice"),
+        K::InternalError => (StatusCode::INTERNAL_SERVER_ERROR, "Internal server error"),
+    }
 }
 
 impl ApiError {
-    /// An error of a known `kind` with a client-facing `detail`.
-    pub fn new(kind: &str, detail: impl Into<String>) -> Self {
-        let (kind, status, title) = kind_entry(kind);
+    /// An error of `kind` with a client-facing `detail`.
+    pub fn new(kind: FailureKind, detail: impl Into<String>) -> Self {
+        let (status, title) = status_and_title(kind);
         Self(Box::new(Problem {
             status,
             kind,
@@ -138,7 +143,7 @@ impl ApiError {
 
     /// A server error; `cause` is logged with the request id, never shown.
     pub fn internal(cause: impl std::fmt::Display) -> Self {
-        let mut e = Self::new("internal-error", "");
+        let mut e = Self::new(FailureKind::InternalError, "");
         e.0.cause = Some(cause.to_string());
         e
     }
@@ -165,7 +170,7 @@ impl ApiError {
     /// True when the body must be generic and the cause logged as an error.
     fn is_hidden(&self) -> bool {
         // Storage refusals and an unhealthy store carry our own text, never a cause.
-        let own_text = matches!(self.0.kind, "insufficient-storage" | "service-unavailable");
+        let own_text = matches!(self.0.kind, FailureKind::InsufficientStorage | FailureKind::ServiceUnavailable);
         self.0.status.is_server_error() && !self.0.expose && !own_text
     }
 
@@ -175,18 +180,18 @@ impl ApiError {
     }
 
     /// The stable kind (suffix of `type`).
-    pub fn kind(&self) -> &'static str {
+    pub fn kind(&self) -> FailureKind {
         self.0.kind
     }
 
     /// The server's storage refused a write: `insufficient-storage` (507)
     /// for a full or read-only disk, else an internal error; `cause` is logged.
-    pub fn storage(kind: Option<&str>, cause: impl std::fmt::Display) -> Self {
+    pub fn storage(kind: Option<FailureKind>, cause: impl std::fmt::Display) -> Self {
         if kind.is_none() {
             return Self::internal(cause);
         }
         let mut e = Self::new(
-            "insufficient-storage",
+            FailureKind::InsufficientStorage,
             "the server's storage is full or read-only, so the request could not be stored; retry later",
         );
         e.0.cause = Some(cause.to_string());
@@ -200,7 +205,7 @@ impl ApiError {
 
     /// Invalid pipeline parameters (422), or not JSON at all (400).
     pub fn params(e: ParamsError) -> Self {
-        let kind = if e.syntax { "invalid-json" } else { "invalid-params" };
+        let kind = if e.syntax { FailureKind::InvalidJson } else { FailureKind::InvalidParams };
         let detail = match &e.field {
             Some(f) => format!("parameter `{f}`: {}", e.message),
             None => e.message.clone(),
@@ -214,14 +219,17 @@ impl ApiError {
 
     /// The upload exceeded `limit` bytes (413).
     pub fn upload_too_large(limit: u64) -> Self {
-        Self::new("upload-too-large", format!("the upload exceeds this server's limit of {limit} bytes"))
+        Self::new(FailureKind::UploadTooLarge, format!("the upload exceeds this server's limit of {limit} bytes"))
             .with("max_bytes", limit)
     }
 
     /// An upload that sent no bytes for `idle_secs` seconds (408).
     pub fn upload_timeout(idle_secs: u64) -> Self {
-        Self::new("upload-timeout", format!("no upload bytes arrived for {idle_secs} s; the upload was dropped"))
-            .with("idle_timeout_secs", idle_secs)
+        Self::new(
+            FailureKind::UploadTimeout,
+            format!("no upload bytes arrived for {idle_secs} s; the upload was dropped"),
+        )
+        .with("idle_timeout_secs", idle_secs)
     }
 
     /// A request the HTTP parser refused before any handler saw it, by the
@@ -229,11 +237,16 @@ impl ApiError {
     /// (`headers-too-large`), anything else `bad-request`.
     pub fn parser_rejection(status: StatusCode) -> Self {
         match status {
-            StatusCode::URI_TOO_LONG => Self::new("uri-too-long", "the request target exceeds this server's limit"),
-            StatusCode::REQUEST_HEADER_FIELDS_TOO_LARGE => {
-                Self::new("headers-too-large", "the request has too many or too large header fields")
+            StatusCode::URI_TOO_LONG => {
+                Self::new(FailureKind::UriTooLong, "the request target exceeds this server's limit")
             }
-            _ => Self::new("bad-request", "the request head is malformed (e.g. control bytes in a header value)"),
+            StatusCode::REQUEST_HEADER_FIELDS_TOO_LARGE => {
+                Self::new(FailureKind::HeadersTooLarge, "the request has too many or too large header fields")
+            }
+            _ => Self::new(
+                FailureKind::BadRequest,
+                "the request head is malformed (e.g. control bytes in a header value)",
+            ),
         }
     }
 
@@ -243,7 +256,7 @@ impl ApiError {
     pub fn http1_bytes(&self, request_id: &str) -> Vec<u8> {
         tracing::info!(
             request_id,
-            kind = self.0.kind,
+            kind = self.0.kind.as_str(),
             status = self.0.status.as_u16(),
             "request rejected by the HTTP parser"
         );
@@ -269,14 +282,14 @@ impl ApiError {
     /// The problem+json object of a failed job (shown inside the job
     /// resource; its `status` is what a synchronous request would have got).
     pub fn job_problem(e: &JobError) -> Value {
-        let (kind, status, title) = kind_entry(&e.kind);
-        let detail = if status.is_server_error() && kind == "internal-error" {
+        let (status, title) = status_and_title(e.kind);
+        let detail = if e.kind == FailureKind::InternalError {
             "the job stopped because of an internal error; it has been logged".to_string()
         } else {
             e.detail.clone()
         };
         json!({
-            "type": format!("{PROBLEM_TYPE_PREFIX}{kind}"),
+            "type": problem_type(e.kind),
             "title": title,
             "status": status.as_u16(),
             "detail": detail,
@@ -291,7 +304,7 @@ impl ApiError {
             self.0.detail.clone()
         };
         let mut obj = Map::new();
-        obj.insert("type".into(), Value::String(format!("{PROBLEM_TYPE_PREFIX}{}", self.0.kind)));
+        obj.insert("type".into(), Value::String(problem_type(self.0.kind)));
         obj.insert("title".into(), Value::String(self.0.title.into()));
         obj.insert("status".into(), Value::from(self.0.status.as_u16()));
         obj.insert("detail".into(), Value::String(detail));
@@ -308,12 +321,12 @@ impl ApiError {
         if self.is_hidden() {
             tracing::error!(
                 request_id,
-                kind = self.0.kind,
+                kind = self.0.kind.as_str(),
                 cause = self.0.cause.as_deref().unwrap_or(&self.0.detail),
                 "request failed"
             );
         } else {
-            tracing::info!(request_id, kind = self.0.kind, status = self.0.status.as_u16(), detail = %self.0.detail, "request rejected");
+            tracing::info!(request_id, kind = self.0.kind.as_str(), status = self.0.status.as_u16(), detail = %self.0.detail, "request rejected");
         }
         let body = serde_json::to_vec(&self.body(request_id)).unwrap_or_default();
         let mut resp = Response::new(Body::from(body));
@@ -336,26 +349,26 @@ impl IntoResponse for ApiError {
 impl From<JobsError> for ApiError {
     fn from(e: JobsError) -> Self {
         match e {
-            JobsError::NotFound(id) => Self::new("job-not-found", format!("job {id} does not exist")),
+            JobsError::NotFound(id) => Self::new(FailureKind::JobNotFound, format!("job {id} does not exist")),
             JobsError::ArtifactNotFound { id, name } => {
-                Self::new("artifact-not-found", format!("job {id} has no artifact named `{name}`"))
+                Self::new(FailureKind::ArtifactNotFound, format!("job {id} has no artifact named `{name}`"))
             }
             JobsError::QueueFull { max_queued } => Self::new(
-                "queue-full",
+                FailureKind::QueueFull,
                 format!("the job queue is full ({max_queued} jobs waiting); retry after the Retry-After delay"),
             ),
             e @ JobsError::MemoryBudgetExceeded { estimated_bytes, budget_bytes } => {
-                Self::new("memory-budget-exceeded", e.to_string())
+                Self::new(FailureKind::MemoryBudgetExceeded, e.to_string())
                     .with("estimated_bytes", estimated_bytes)
                     .with("budget_bytes", budget_bytes)
             }
             JobsError::TenantQueueFull { max_queued } => Self::new(
-                "tenant-queue-full",
+                FailureKind::TenantQueueFull,
                 format!("you already have {max_queued} queued jobs; retry after the Retry-After delay"),
             )
             .with("max_queued", max_queued),
             JobsError::QuotaExceeded { tenant, max_bytes } => Self::new(
-                "insufficient-storage",
+                FailureKind::InsufficientStorage,
                 format!(
                     "storing this upload would exceed the {} storage quota of {max_bytes} bytes; \
                      delete finished jobs to make room",
@@ -377,18 +390,19 @@ fn client_request_id(headers: &HeaderMap) -> Option<String> {
     ok.then(|| v.to_string())
 }
 
-/// Kind for an error status produced outside our handlers.
-fn kind_for_status(status: StatusCode) -> &'static str {
+/// Kind for an error status produced outside our handlers (a status code
+/// has no fixed set of values, so unknown ones fall back by class).
+fn kind_for_status(status: StatusCode) -> FailureKind {
     match status {
-        StatusCode::NOT_FOUND => "not-found",
-        StatusCode::METHOD_NOT_ALLOWED => "method-not-allowed",
-        StatusCode::PAYLOAD_TOO_LARGE => "upload-too-large",
-        StatusCode::RANGE_NOT_SATISFIABLE => "range-not-satisfiable",
-        StatusCode::UNSUPPORTED_MEDIA_TYPE => "unsupported-media-type",
-        StatusCode::TOO_MANY_REQUESTS => "queue-full",
-        StatusCode::SERVICE_UNAVAILABLE => "service-unavailable",
-        s if s.is_client_error() => "bad-request",
-        _ => "internal-error",
+        StatusCode::NOT_FOUND => FailureKind::NotFound,
+        StatusCode::METHOD_NOT_ALLOWED => FailureKind::MethodNotAllowed,
+        StatusCode::PAYLOAD_TOO_LARGE => FailureKind::UploadTooLarge,
+        StatusCode::RANGE_NOT_SATISFIABLE => FailureKind::RangeNotSatisfiable,
+        StatusCode::UNSUPPORTED_MEDIA_TYPE => FailureKind::UnsupportedMediaType,
+        StatusCode::TOO_MANY_REQUESTS => FailureKind::QueueFull,
+        StatusCode::SERVICE_UNAVAILABLE => FailureKind::ServiceUnavailable,
+        s if s.is_client_error() => FailureKind::BadRequest,
+        _ => FailureKind::InternalError,
     }
 }
 
@@ -428,8 +442,10 @@ async fn problemize(resp: Response, id: &str) -> Response {
     };
     let kind = kind_for_status(parts.status);
     let detail = match (kind, text.is_empty()) {
-        ("not-found", true) => "no route matches this path; see api/openapi.yaml".to_string(),
-        ("method-not-allowed", true) => "this path does not support this method (see the Allow header)".to_string(),
+        (FailureKind::NotFound, true) => "no route matches this path; see api/openapi.yaml".to_string(),
+        (FailureKind::MethodNotAllowed, true) => {
+            "this path does not support this method (see the Allow header)".to_string()
+        }
         (_, true) => parts.status.canonical_reason().unwrap_or("error").to_string(),
         (_, false) => text,
     };
@@ -449,17 +465,99 @@ mod tests {
     use super::*;
 
     #[test]
-    fn every_kind_has_a_status_and_unknown_kinds_are_internal() {
-        assert_eq!(ApiError::new("queue-full", "x").status(), StatusCode::TOO_MANY_REQUESTS);
-        assert_eq!(ApiError::new("too-many-triangles", "x").status(), StatusCode::UNPROCESSABLE_ENTITY);
-        assert_eq!(ApiError::new("no-such-kind", "x").kind(), "internal-error");
-        let p = ApiError::job_problem(&JobError::new("too-many-triangles", "7 > 5"));
+    fn every_kind_maps_to_an_error_status_and_a_title() {
+        let mut titles = std::collections::BTreeSet::new();
+        for &k in FailureKind::ALL {
+            let (status, title) = status_and_title(k);
+            assert!(status.is_client_error() || status.is_server_error(), "{k}: {status}");
+            assert!(title.starts_with(char::is_uppercase) && !title.ends_with('.'), "{k}: title `{title}`");
+            assert!(titles.insert(title), "{k}: title `{title}` is used by two kinds");
+            let e = ApiError::new(k, "x");
+            assert_eq!((e.kind(), e.status()), (k, status));
+            assert_eq!(e.body("r")["type"], format!("urn:meshatlas:problem:{k}"));
+        }
+    }
+
+    #[test]
+    fn published_statuses_of_kinds_do_not_change() {
+        // The statuses api/openapi.yaml documents for each kind.
+        let cases = [
+            (FailureKind::BadRequest, 400),
+            (FailureKind::EmptyFile, 400),
+            (FailureKind::Unauthorized, 401),
+            (FailureKind::JobNotFound, 404),
+            (FailureKind::MethodNotAllowed, 405),
+            (FailureKind::UploadTimeout, 408),
+            (FailureKind::UploadTooLarge, 413),
+            (FailureKind::UriTooLong, 414),
+            (FailureKind::UnknownFormat, 415),
+            (FailureKind::RangeNotSatisfiable, 416),
+            (FailureKind::InvalidParams, 422),
+            (FailureKind::MemoryBudgetExceeded, 422),
+            (FailureKind::TooManyTriangles, 422),
+            (FailureKind::InvalidTargetSize, 422),
+            (FailureKind::CrashedServer, 422),
+            (FailureKind::TenantQueueFull, 429),
+            (FailureKind::HeadersTooLarge, 431),
+            (FailureKind::InternalError, 500),
+            (FailureKind::StorageUnavailable, 503),
+            (FailureKind::Interrupted, 503),
+            (FailureKind::StorageFull, 507),
+            (FailureKind::InsufficientStorage, 507),
+        ];
+        for (k, status) in cases {
+            assert_eq!(status_and_title(k).0.as_u16(), status, "{k}");
+        }
+    }
+
+    #[test]
+    fn job_problems_carry_the_kind_and_hide_internal_details() {
+        let p = ApiError::job_problem(&JobError::new(FailureKind::TooManyTriangles, "7 > 5"));
         assert_eq!(p["status"], 422);
         assert_eq!(p["type"], "urn:meshatlas:problem:too-many-triangles");
         assert_eq!(p["detail"], "7 > 5");
-        let p = ApiError::job_problem(&JobError::new("internal-error", "secret panic text"));
+        let p = ApiError::job_problem(&JobError::new(FailureKind::InternalError, "secret panic text"));
         assert_eq!(p["status"], 500);
         assert!(!p["detail"].as_str().unwrap().contains("secret"));
+        // A kind stored by another version reads back as an internal error, detail hidden.
+        let stored: JobError = serde_json::from_value(json!({"kind": "write-failed", "detail": "EIO on /x"})).unwrap();
+        let p = ApiError::job_problem(&stored);
+        assert_eq!(
+            (p["status"].as_u64(), p["type"].as_str()),
+            (Some(500), Some("urn:meshatlas:problem:internal-error"))
+        );
+        assert!(!p["detail"].as_str().unwrap().contains("EIO"));
+    }
+
+    #[test]
+    fn framework_statuses_get_a_kind_of_their_class() {
+        assert_eq!(kind_for_status(StatusCode::NOT_FOUND), FailureKind::NotFound);
+        assert_eq!(kind_for_status(StatusCode::LENGTH_REQUIRED), FailureKind::BadRequest);
+        assert_eq!(kind_for_status(StatusCode::BAD_GATEWAY), FailureKind::InternalError);
+    }
+
+    /// The `enum` of `components.schemas.ProblemType` in api/openapi.yaml.
+    fn documented_problem_types() -> Vec<String> {
+        let path = concat!(env!("CARGO_MANIFEST_DIR"), "/api/openapi.yaml");
+        let text = std::fs::read_to_string(path).unwrap();
+        let doc = yaml_rust2::YamlLoader::load_from_str(&text).unwrap().remove(0);
+        let values = doc["components"]["schemas"]["ProblemType"]["enum"].as_vec().expect("ProblemType has an enum");
+        values.iter().map(|v| v.as_str().expect("a string").to_string()).collect()
+    }
+
+    #[test]
+    fn every_kind_and_only_kinds_have_a_documented_type_uri() {
+        let documented = documented_problem_types();
+        let unique: std::collections::BTreeSet<&str> = documented.iter().map(String::as_str).collect();
+        assert_eq!(unique.len(), documented.len(), "a type is listed twice in ProblemType");
+        for &k in FailureKind::ALL {
+            let uri = problem_type(k);
+            assert!(unique.contains(uri.as_str()), "kind `{k}`: {uri} is not in api/openapi.yaml ProblemType");
+        }
+        for uri in &documented {
+            let kind = uri.strip_prefix(PROBLEM_TYPE_PREFIX).and_then(FailureKind::parse);
+            assert!(kind.is_some(), "api/openapi.yaml ProblemType lists {uri}, which is no FailureKind");
+        }
     }
 
     #[test]

@@ -16,6 +16,7 @@ use super::auth::Scope;
 use super::error::ApiError;
 use super::range;
 use super::upload::{self, SubmitQuery};
+use crate::failure::FailureKind;
 use crate::jobs::{JobId, JobRecord, JobsError, NewJob, model::rfc3339};
 use crate::pipeline::parse_params;
 
@@ -61,7 +62,7 @@ pub fn job_json(rec: &JobRecord) -> Value {
 }
 
 fn parse_id(id: &str) -> Result<JobId, ApiError> {
-    id.parse::<JobId>().map_err(|e| ApiError::new("job-not-found", e.to_string()))
+    id.parse::<JobId>().map_err(|e| ApiError::new(FailureKind::JobNotFound, e.to_string()))
 }
 
 /// The job id of the path if the caller may see that job; another tenant's
@@ -86,7 +87,7 @@ fn refused(st: &AppState, e: JobsError) -> ApiError {
 }
 
 fn bad_query(e: QueryRejection) -> ApiError {
-    ApiError::new("invalid-query", e.body_text())
+    ApiError::new(FailureKind::InvalidQuery, e.body_text())
 }
 
 /// Builds the params JSON from the multipart part, `?params=` and `?stages=`.
@@ -94,7 +95,7 @@ fn params_json(q: &SubmitQuery, part: Option<&[u8]>) -> Result<Value, ApiError> 
     let given = match (part, q.params.as_deref()) {
         (Some(_), Some(_)) => {
             return Err(ApiError::new(
-                "bad-request",
+                FailureKind::BadRequest,
                 "parameters given twice: both a `params` part and a `params` query parameter",
             ));
         }
@@ -103,13 +104,13 @@ fn params_json(q: &SubmitQuery, part: Option<&[u8]>) -> Result<Value, ApiError> 
         (None, None) => None,
     };
     if given.as_ref().is_some_and(|g| g.len() > upload::MAX_PARAMS_BYTES) {
-        return Err(ApiError::new("invalid-params", "parameters exceed 64 KiB"));
+        return Err(ApiError::new(FailureKind::InvalidParams, "parameters exceed 64 KiB"));
     }
     let mut value: Value = match &given {
         Some(bytes) => {
             // Validate fully first so errors name the field.
             parse_params(bytes).map_err(ApiError::params)?;
-            serde_json::from_slice(bytes).map_err(|e| ApiError::new("invalid-json", e.to_string()))?
+            serde_json::from_slice(bytes).map_err(|e| ApiError::new(FailureKind::InvalidJson, e.to_string()))?
         }
         None => json!({}),
     };
@@ -118,12 +119,15 @@ fn params_json(q: &SubmitQuery, part: Option<&[u8]>) -> Result<Value, ApiError> 
             stages.split(',').map(str::trim).filter(|s| !s.is_empty()).map(|s| Value::String(s.into())).collect();
         match value.as_object_mut() {
             Some(obj) if obj.contains_key("stages") => {
-                return Err(ApiError::new("bad-request", "stages given twice: in `params` and in `?stages=`"));
+                return Err(ApiError::new(
+                    FailureKind::BadRequest,
+                    "stages given twice: in `params` and in `?stages=`",
+                ));
             }
             Some(obj) => {
                 obj.insert("stages".into(), Value::Array(list));
             }
-            None => return Err(ApiError::new("invalid-params", "parameters must be a JSON object")),
+            None => return Err(ApiError::new(FailureKind::InvalidParams, "parameters must be a JSON object")),
         }
     }
     let bytes = serde_json::to_vec(&value).map_err(ApiError::internal)?;
@@ -180,7 +184,7 @@ pub async fn submit_job(
         None => params_json(&q, up.params_part.as_deref())?,
     };
     if up.bytes == 0 {
-        return Err(ApiError::new("empty-file", "the uploaded mesh file is empty (0 bytes)"));
+        return Err(ApiError::new(FailureKind::EmptyFile, "the uploaded mesh file is empty (0 bytes)"));
     }
     let format = upload::resolve_format(q.format.as_deref(), &up)?;
     let input_name = up
@@ -215,7 +219,7 @@ pub async fn submit_job(
 
 fn queue_full(st: &AppState) -> ApiError {
     let max = st.jobs.config().max_queued;
-    ApiError::new("queue-full", format!("the job queue is full ({max} jobs waiting); retry later"))
+    ApiError::new(FailureKind::QueueFull, format!("the job queue is full ({max} jobs waiting); retry later"))
         .retry_after(st.limits.retry_after_secs)
         .with("max_queued", max)
 }
@@ -249,12 +253,14 @@ pub async fn list_jobs(
     let Query(q) = query.map_err(bad_query)?;
     let limit = q.limit.unwrap_or(20);
     if !(1..=100).contains(&limit) {
-        return Err(ApiError::new("invalid-query", format!("limit {limit} is not in 1..=100")).with("field", "limit"));
+        return Err(
+            ApiError::new(FailureKind::InvalidQuery, format!("limit {limit} is not in 1..=100")).with("field", "limit")
+        );
     }
     let cursor = match q.cursor.as_deref() {
         None | Some("") => None,
         Some(c) => Some(c.parse::<i64>().map_err(|_| {
-            ApiError::new("invalid-query", format!("cursor `{c}` is not a cursor from a previous page"))
+            ApiError::new(FailureKind::InvalidQuery, format!("cursor `{c}` is not a cursor from a previous page"))
                 .with("field", "cursor")
         })?),
     };
@@ -326,7 +332,7 @@ fn range_not_satisfiable(range: &str, served: &Response) -> Response {
         Some(len) => format!("the range `{range}` lies outside the artifact's {len} bytes"),
         None => format!("the range `{range}` lies outside the artifact"),
     };
-    let mut resp = ApiError::new("range-not-satisfiable", detail).into_response();
+    let mut resp = ApiError::new(FailureKind::RangeNotSatisfiable, detail).into_response();
     if let Some(v) = content_range {
         resp.headers_mut().insert(header::CONTENT_RANGE, v);
     }
@@ -366,12 +372,12 @@ pub async fn get_artifact(
 /// `GET /healthz`.
 pub async fn healthz(State(st): State<AppState>) -> Result<Json<Value>, ApiError> {
     st.jobs.health().await.map_err(|e| {
-        ApiError::new("service-unavailable", "the job store does not answer").with("cause", e.to_string())
+        ApiError::new(FailureKind::ServiceUnavailable, "the job store does not answer").with("cause", e.to_string())
     })?;
     let problems = st.jobs.storage_problems().await;
     if !problems.is_empty() {
         return Err(ApiError::new(
-            "service-unavailable",
+            FailureKind::ServiceUnavailable,
             format!("the store is not writable: {}", problems.join("; ")),
         )
         .with("problems", problems));
@@ -387,5 +393,8 @@ pub async fn metrics(State(st): State<AppState>) -> Result<Response, ApiError> {
 
 /// Fallback for unknown paths.
 pub async fn not_found(req: Request) -> ApiError {
-    ApiError::new("not-found", format!("no route for {} {}; see api/openapi.yaml", req.method(), req.uri().path()))
+    ApiError::new(
+        FailureKind::NotFound,
+        format!("no route for {} {}; see api/openapi.yaml", req.method(), req.uri().path()),
+    )
 }

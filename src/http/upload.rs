@@ -26,6 +26,7 @@ use tokio::io::AsyncWriteExt;
 
 use super::error::ApiError;
 use super::multipart_framing::{FramingError, FramingGuard, MAX_PART_HEADER_BYTES, MAX_PREAMBLE_BYTES};
+use crate::failure::FailureKind;
 use crate::io::Format;
 
 /// Bytes kept from the start of the upload for format sniffing.
@@ -144,8 +145,8 @@ async fn stream_to_file<E: std::fmt::Display>(
         .await
         .map_err(|e| ApiError::io(&format!("cannot create {}", upload.path.display()), &e))?;
     while let Some(chunk) = stream.next().await {
-        let chunk =
-            chunk.map_err(|e| ApiError::new("upload-interrupted", format!("reading the upload failed: {e}")))?;
+        let chunk = chunk
+            .map_err(|e| ApiError::new(FailureKind::UploadInterrupted, format!("reading the upload failed: {e}")))?;
         upload.bytes += chunk.len() as u64;
         if upload.bytes > limit {
             drain(stream).await;
@@ -218,10 +219,10 @@ fn multipart_error(e: multer::Error, limit: u64) -> ApiError {
     match e {
         multer::Error::StreamReadFailed(inner) => match inner.downcast_ref::<FramingError>() {
             Some(FramingError::Body(cause)) => {
-                ApiError::new("upload-interrupted", format!("reading the upload failed: {cause}"))
+                ApiError::new(FailureKind::UploadInterrupted, format!("reading the upload failed: {cause}"))
             }
-            Some(framing) => ApiError::new("invalid-multipart", framing.to_string()),
-            None => ApiError::new("upload-interrupted", format!("reading the upload failed: {inner}")),
+            Some(framing) => ApiError::new(FailureKind::InvalidMultipart, framing.to_string()),
+            None => ApiError::new(FailureKind::UploadInterrupted, format!("reading the upload failed: {inner}")),
         },
         multer::Error::StreamSizeExceeded { .. } => ApiError::upload_too_large(limit),
         multer::Error::FieldSizeExceeded { field_name, .. } if field_name.as_deref() == Some("file") => {
@@ -229,9 +230,9 @@ fn multipart_error(e: multer::Error, limit: u64) -> ApiError {
         }
         multer::Error::FieldSizeExceeded { field_name, .. } => {
             let name = field_name.unwrap_or_default();
-            ApiError::new("invalid-params", format!("the `{name}` part exceeds {MAX_PARAMS_BYTES} bytes"))
+            ApiError::new(FailureKind::InvalidParams, format!("the `{name}` part exceeds {MAX_PARAMS_BYTES} bytes"))
         }
-        other => ApiError::new("invalid-multipart", other.to_string()),
+        other => ApiError::new(FailureKind::InvalidMultipart, other.to_string()),
     }
 }
 
@@ -267,7 +268,10 @@ async fn read_small_part(mut field: multer::Field<'static>, name: &str, limit: u
     while let Some(chunk) = field.chunk().await.map_err(|e| multipart_error(e, limit))? {
         buf.extend_from_slice(&chunk);
         if buf.len() > MAX_PARAMS_BYTES {
-            return Err(ApiError::new("invalid-params", format!("the `{name}` part exceeds {MAX_PARAMS_BYTES} bytes")));
+            return Err(ApiError::new(
+                FailureKind::InvalidParams,
+                format!("the `{name}` part exceeds {MAX_PARAMS_BYTES} bytes"),
+            ));
         }
     }
     Ok(buf)
@@ -276,7 +280,7 @@ async fn read_small_part(mut field: multer::Field<'static>, name: &str, limit: u
 /// The boundary of a `multipart/form-data` Content-Type.
 fn multipart_boundary(headers: &HeaderMap) -> Result<String, ApiError> {
     let ct = headers.get(header::CONTENT_TYPE).and_then(|v| v.to_str().ok()).unwrap_or("");
-    multer::parse_boundary(ct).map_err(|e| ApiError::new("invalid-multipart", format!("Content-Type: {e}")))
+    multer::parse_boundary(ct).map_err(|e| ApiError::new(FailureKind::InvalidMultipart, format!("Content-Type: {e}")))
 }
 
 /// Receives a multipart body: one `file` part (streamed to `path`) and an
@@ -316,7 +320,7 @@ async fn read_parts(mut mp: multer::Multipart<'static>, path: PathBuf, limit: u6
         match name.as_str() {
             "file" => {
                 if have_file {
-                    return Err(ApiError::new("invalid-multipart", "more than one `file` part"));
+                    return Err(ApiError::new(FailureKind::InvalidMultipart, "more than one `file` part"));
                 }
                 have_file = true;
                 up.filename = field.file_name().map(str::to_string);
@@ -333,13 +337,13 @@ async fn read_parts(mut mp: multer::Multipart<'static>, path: PathBuf, limit: u6
             }
             "params" => {
                 if up.params_part.is_some() {
-                    return Err(ApiError::new("invalid-multipart", "more than one `params` part"));
+                    return Err(ApiError::new(FailureKind::InvalidMultipart, "more than one `params` part"));
                 }
                 up.params_part = Some(read_small_part(field, "params", limit).await?);
             }
             other => {
                 return Err(ApiError::new(
-                    "invalid-multipart",
+                    FailureKind::InvalidMultipart,
                     format!("unknown part `{other}`; expected `file` and optionally `params`"),
                 )
                 .with("part", other));
@@ -347,7 +351,7 @@ async fn read_parts(mut mp: multer::Multipart<'static>, path: PathBuf, limit: u6
         }
     }
     if !have_file {
-        return Err(ApiError::new("missing-file", "the multipart body has no `file` part"));
+        return Err(ApiError::new(FailureKind::MissingFile, "the multipart body has no `file` part"));
     }
     Ok(up)
 }
@@ -368,7 +372,7 @@ pub fn resolve_format(explicit: Option<&str>, upload: &Upload) -> Result<Format,
     if let Some(name) = explicit {
         return Format::from_name(name).ok_or_else(|| {
             let names: Vec<&str> = Format::ALL.iter().map(|f| f.extension()).collect();
-            ApiError::new("invalid-query", format!("format `{name}` is not one of {}", names.join(", ")))
+            ApiError::new(FailureKind::InvalidQuery, format!("format `{name}` is not one of {}", names.join(", ")))
                 .with("field", "format")
         });
     }
@@ -377,7 +381,7 @@ pub fn resolve_format(explicit: Option<&str>, upload: &Upload) -> Result<Format,
     {
         return Format::from_media_type(mt).ok_or_else(|| {
             ApiError::new(
-                "unsupported-media-type",
+                FailureKind::UnsupportedMediaType,
                 format!(
                     "Content-Type `{mt}` is not a mesh format; send model/stl, model/obj, model/ply, \
                      application/x-gmsh or application/octet-stream, or multipart/form-data"
@@ -391,7 +395,7 @@ pub fn resolve_format(explicit: Option<&str>, upload: &Upload) -> Result<Format,
     }
     Format::sniff(&upload.head, Some(upload.bytes)).ok_or_else(|| {
         ApiError::new(
-            "unknown-format",
+            FailureKind::UnknownFormat,
             "the upload is not recognised as STL, OBJ, PLY or MSH; name the format with ?format= \
              or a file name extension",
         )

@@ -2,11 +2,12 @@
 //!
 //! Every variant names the place of the problem: a 1-based line number for
 //! text data, a 0-based byte offset for binary data ([`Location`]). Each
-//! variant maps to a stable kebab-case id ([`IoError::kind`]) that the HTTP
-//! layer uses as the `type` of its problem document; the ids never change
+//! variant maps to a stable [`FailureKind`] ([`IoError::kind`]) that the HTTP
+//! layer uses as the `type` of its problem document; the kinds never change
 //! once published, messages may be improved.
 
 use super::Format;
+use crate::failure::FailureKind;
 use std::fmt;
 use thiserror::Error;
 
@@ -195,23 +196,24 @@ pub enum IoError {
 }
 
 impl IoError {
-    /// Stable kebab-case id of the failure kind (used as problem `type`).
-    pub fn kind(&self) -> &'static str {
+    /// The stable failure kind (the problem `type`). A read the operating
+    /// system refused (`Io`) is the server's fault: `internal-error`.
+    pub fn kind(&self) -> FailureKind {
         match self {
-            IoError::EmptyFile => "empty-file",
-            IoError::UnknownFormat { .. } => "unknown-format",
-            IoError::Truncated { .. } | IoError::TruncatedBinaryStl { .. } => "truncated",
-            IoError::Parse { .. } => "parse-error",
-            IoError::NonFiniteCoordinate { .. } => "non-finite-coordinate",
-            IoError::CoordinateOutOfRange { .. } => "coordinate-out-of-range",
-            IoError::IndexOutOfRange { .. } => "index-out-of-range",
-            IoError::TooManyTriangles { .. } => "too-many-triangles",
-            IoError::TooManyVertices { .. } => "too-many-vertices",
-            IoError::NoTriangles { .. } => "no-triangles",
-            IoError::Unsupported { .. } => "unsupported",
-            IoError::InvalidMesh { .. } => "invalid-mesh",
-            IoError::InvalidOptions { .. } => "invalid-options",
-            IoError::Io(_) => "io",
+            IoError::EmptyFile => FailureKind::EmptyFile,
+            IoError::UnknownFormat { .. } => FailureKind::UnknownFormat,
+            IoError::Truncated { .. } | IoError::TruncatedBinaryStl { .. } => FailureKind::Truncated,
+            IoError::Parse { .. } => FailureKind::ParseError,
+            IoError::NonFiniteCoordinate { .. } => FailureKind::NonFiniteCoordinate,
+            IoError::CoordinateOutOfRange { .. } => FailureKind::CoordinateOutOfRange,
+            IoError::IndexOutOfRange { .. } => FailureKind::IndexOutOfRange,
+            IoError::TooManyTriangles { .. } => FailureKind::TooManyTriangles,
+            IoError::TooManyVertices { .. } => FailureKind::TooManyVertices,
+            IoError::NoTriangles { .. } => FailureKind::NoTriangles,
+            IoError::Unsupported { .. } => FailureKind::Unsupported,
+            IoError::InvalidMesh { .. } => FailureKind::InvalidMesh,
+            IoError::InvalidOptions { .. } => FailureKind::InvalidOptions,
+            IoError::Io(_) => FailureKind::InternalError,
         }
     }
 
@@ -228,14 +230,14 @@ mod tests {
     #[test]
     fn kinds_are_stable_and_messages_name_the_place() {
         let e = IoError::Parse { format: Format::Obj, at: Location::Line(12), message: "bad".into() };
-        assert_eq!(e.kind(), "parse-error");
+        assert_eq!(e.kind(), FailureKind::ParseError);
         assert_eq!(e.to_string(), "OBJ parse error at line 12: bad");
         let e = IoError::TruncatedBinaryStl { n_triangles: 10, expected_bytes: 584, actual_bytes: 300 };
-        assert_eq!(e.kind(), "truncated");
+        assert_eq!(e.kind(), FailureKind::Truncated);
         assert!(e.to_string().contains("584 bytes") && e.to_string().contains("300 bytes"), "{e}");
         let e = IoError::Truncated { format: Format::Ply, at: Location::Byte(99), detail: "x".into() };
         assert!(e.to_string().contains("byte offset 99"));
-        assert_eq!(IoError::EmptyFile.kind(), "empty-file");
+        assert_eq!(IoError::EmptyFile.kind(), FailureKind::EmptyFile);
         assert!(!IoError::Io(std::io::Error::other("disk")).is_bad_input());
     }
 }

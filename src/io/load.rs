@@ -339,6 +339,7 @@ fn describe_contents(raw: &RawMesh) -> String {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::failure::FailureKind;
     use crate::mesh::fixtures;
 
     fn ascii_stl(m: &TriMesh) -> String {
@@ -379,21 +380,21 @@ mod tests {
             LoadOptions { weld_tolerance: f64::NAN, ..Default::default() },
             LoadOptions { max_triangles: 0, ..Default::default() },
         ] {
-            assert_eq!(load_bytes(b"x", Some(Format::Obj), &bad).unwrap_err().kind(), "invalid-options");
+            assert_eq!(load_bytes(b"x", Some(Format::Obj), &bad).unwrap_err().kind(), FailureKind::InvalidOptions);
         }
     }
 
     #[test]
     fn empty_and_meshless_inputs() {
         let o = LoadOptions::default();
-        assert_eq!(load_bytes(b"", None, &o).unwrap_err().kind(), "empty-file");
-        assert_eq!(load_reader(&b""[..], Format::Ply, &o).unwrap_err().kind(), "empty-file");
-        assert_eq!(load_bytes(b"hello", None, &o).unwrap_err().kind(), "unknown-format");
+        assert_eq!(load_bytes(b"", None, &o).unwrap_err().kind(), FailureKind::EmptyFile);
+        assert_eq!(load_reader(&b""[..], Format::Ply, &o).unwrap_err().kind(), FailureKind::EmptyFile);
+        assert_eq!(load_bytes(b"hello", None, &o).unwrap_err().kind(), FailureKind::UnknownFormat);
         let e = load_bytes(b"v 0 0 0\nv 1 0 0\nl 1 2\n", None, &o).unwrap_err();
-        assert_eq!(e.kind(), "no-triangles");
+        assert_eq!(e.kind(), FailureKind::NoTriangles);
         assert!(e.to_string().contains("2 vertices") && e.to_string().contains("1 × line"), "{e}");
         let e = load_bytes(b"v 0 0 0\nv 1 0 0\nf 1 2 2\n", None, &o).unwrap_err();
-        assert_eq!(e.kind(), "no-triangles");
+        assert_eq!(e.kind(), FailureKind::NoTriangles);
         assert!(e.to_string().contains("1 repeat a vertex"), "{e}");
     }
 

@@ -524,6 +524,7 @@ pub fn skip_items<R: BufRead>(src: &mut Source<R>, count: u64, size: u64, what: 
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::failure::FailureKind;
 
     #[test]
     fn element_table_is_sorted_and_knows_the_common_types() {
@@ -567,14 +568,14 @@ mod tests {
     fn header_versions() {
         let lim = Limits::from_max_triangles(10);
         let e = read("$MeshFormat\n4 0 8\n$EndMeshFormat\n".as_bytes(), &lim).unwrap_err();
-        assert_eq!(e.kind(), "unsupported");
+        assert_eq!(e.kind(), FailureKind::Unsupported);
         assert!(e.to_string().contains("MSH version 4") && e.to_string().contains("msh41"), "{e}");
         let e = read("$Nodes\n".as_bytes(), &lim).unwrap_err();
         assert!(e.to_string().contains("expected `$MeshFormat` first"), "{e}");
         let e = read("$MeshFormat\n2.2 0 8\n".as_bytes(), &lim).unwrap_err();
-        assert_eq!(e.kind(), "truncated");
+        assert_eq!(e.kind(), FailureKind::Truncated);
         let e = read("$MeshFormat\n2.2 1 4\n".as_bytes(), &lim).unwrap_err();
-        assert_eq!(e.kind(), "unsupported");
+        assert_eq!(e.kind(), FailureKind::Unsupported);
         let e = read("$MeshFormat\n2.2 1 8\n\x07\x00\x00\x00\n$EndMeshFormat\n".as_bytes(), &lim).unwrap_err();
         assert!(e.to_string().contains("byte-order marker"), "{e}");
         let e = read("$MeshFormat\n2.2 0 8 9\n$EndMeshFormat\n".as_bytes(), &lim).unwrap_err();
@@ -598,7 +599,7 @@ mod tests {
             let e = read(format!("{head}$MeshFormat\n").as_bytes(), &lim).unwrap_err();
             assert!(e.to_string().contains("second `$MeshFormat`"), "{v}: {e}");
             let e = read(format!("{head}$Unknown\n1 2 3\n").as_bytes(), &lim).unwrap_err();
-            assert!(e.kind() == "truncated" && e.to_string().contains("$EndUnknown"), "{v}: {e}");
+            assert!(e.kind() == FailureKind::Truncated && e.to_string().contains("$EndUnknown"), "{v}: {e}");
         }
         // Binary 2.2: a block claiming more elements than announced, a negative node tag.
         let mut b = b"$MeshFormat\n2.2 1 8\n".to_vec();

@@ -118,6 +118,7 @@ pub fn read<R: BufRead>(reader: R, limits: &Limits) -> Result<RawMesh, IoError> 
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::failure::FailureKind;
 
     fn limits() -> Limits {
         Limits::from_max_triangles(100)
@@ -139,7 +140,7 @@ mod tests {
         let m = read("f 1 2 3\nv 0 0 0\nv 1 0 0\nv 0 1 0\n".as_bytes(), &limits()).unwrap();
         assert_eq!(m.triangles, vec![[0, 1, 2]]);
         let e = read("v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 3\nf 1 2 7\nf 1 7 3\n".as_bytes(), &limits()).unwrap_err();
-        assert_eq!(e.kind(), "index-out-of-range");
+        assert_eq!(e.kind(), FailureKind::IndexOutOfRange);
         let m = e.to_string();
         assert!(
             m.contains("face 2") && m.contains("vertex 7") && m.contains("line 5") && m.contains("3 vertices"),
@@ -156,15 +157,15 @@ mod tests {
         let e = read("v 0 0 0\nv 1 0 0\nv 0 1 0\nf 0 1 2\n".as_bytes(), &limits()).unwrap_err();
         assert!(e.to_string().contains("line 4") && e.to_string().contains("index 0"), "{e}");
         let e = read("v 0 0 0\nf -1 -2 -3\n".as_bytes(), &limits()).unwrap_err();
-        assert_eq!(e.kind(), "index-out-of-range");
+        assert_eq!(e.kind(), FailureKind::IndexOutOfRange);
         assert!(e.to_string().contains("face 1") && e.to_string().contains("-2"), "{e}");
         let e = read("v 0 0 0\nf 1 a 2\n".as_bytes(), &limits()).unwrap_err();
         assert!(e.to_string().contains("face 1: `a` is not a vertex index"), "{e}");
         let e = read("v 0 0 0\nv inf 0 0\n".as_bytes(), &limits()).unwrap_err();
-        assert_eq!(e.kind(), "non-finite-coordinate");
+        assert_eq!(e.kind(), FailureKind::NonFiniteCoordinate);
         assert!(e.to_string().contains("vertex 2") && e.to_string().contains("line 2"), "{e}");
         let e = read("v 0 0 0\nf 1 99999999999 2\n".as_bytes(), &limits()).unwrap_err();
-        assert_eq!(e.kind(), "index-out-of-range");
+        assert_eq!(e.kind(), FailureKind::IndexOutOfRange);
     }
 
     #[test]
@@ -174,7 +175,7 @@ mod tests {
             text.push_str("f 1 2 3\n");
         }
         let e = read(text.as_bytes(), &limits()).unwrap_err();
-        assert_eq!(e.kind(), "too-many-triangles");
+        assert_eq!(e.kind(), FailureKind::TooManyTriangles);
         assert!(e.to_string().contains("line 104"), "{e}");
     }
 }

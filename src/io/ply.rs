@@ -485,6 +485,7 @@ fn read_binary_element<R: BufRead>(
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::failure::FailureKind;
 
     fn limits() -> Limits {
         Limits::from_max_triangles(100)
@@ -554,7 +555,7 @@ mod tests {
     fn truncated_binary_names_offset() {
         let bytes = binary(Endian::Little);
         let e = read(&bytes[..bytes.len() - 3], None, &limits()).unwrap_err();
-        assert_eq!(e.kind(), "truncated");
+        assert_eq!(e.kind(), FailureKind::Truncated);
         assert!(e.to_string().contains("byte offset"), "{e}");
     }
 
@@ -573,7 +574,7 @@ mod tests {
             read("ply\nformat ascii 1.0\nelement vertex 1\nproperty flt x\n".as_bytes(), None, &limits()).unwrap_err();
         assert!(e.to_string().contains("unknown property type `flt`") && e.to_string().contains("line 4"), "{e}");
         let e = read("ply\nformat ascii 1.0\nelement vertex 1\n".as_bytes(), None, &limits()).unwrap_err();
-        assert_eq!(e.kind(), "truncated");
+        assert_eq!(e.kind(), FailureKind::Truncated);
         let bad = ASCII.replace("1 1 0 1 7 10", "1 1 q 1 7 10");
         let e = read(bad.as_bytes(), None, &limits()).unwrap_err();
         assert!(
@@ -582,21 +583,21 @@ mod tests {
         );
         let bad = ASCII.replace("3 0 1 2 5", "3 0 1 9 5");
         let e = read(bad.as_bytes(), None, &limits()).unwrap_err();
-        assert_eq!(e.kind(), "index-out-of-range");
+        assert_eq!(e.kind(), FailureKind::IndexOutOfRange);
         assert!(
             e.to_string().contains("face 1") && e.to_string().contains("vertex 9") && e.to_string().contains("line 21"),
             "{e}"
         );
         let bad = ASCII.replace("3 0 1 2 5", "3 0 -1 2 5");
         let e = read(bad.as_bytes(), None, &limits()).unwrap_err();
-        assert_eq!(e.kind(), "index-out-of-range");
+        assert_eq!(e.kind(), FailureKind::IndexOutOfRange);
         let bad = ASCII.replace("1 0 0 0 10", "1 nan 0 0 10");
         let e = read(bad.as_bytes(), None, &limits()).unwrap_err();
-        assert_eq!(e.kind(), "non-finite-coordinate");
+        assert_eq!(e.kind(), FailureKind::NonFiniteCoordinate);
         assert!(e.to_string().contains("vertex 2") && e.to_string().contains("line 18"), "{e}");
         let bad = ASCII.replace("0 1 0 0 10\n3 0 1 2 5\n4 0 1\n 2 3 0\n0 1\n", "0 1 0 0 10\n3 0 1 2 5\n4 0 1\n");
         let e = read(bad.as_bytes(), None, &limits()).unwrap_err();
-        assert_eq!(e.kind(), "truncated");
+        assert_eq!(e.kind(), FailureKind::Truncated);
         assert!(e.to_string().contains("face 2 of 2"), "{e}");
     }
 
@@ -633,10 +634,10 @@ mod tests {
     fn huge_counts_do_not_allocate_or_hang() {
         let text = "ply\nformat binary_little_endian 1.0\nelement vertex 4000000000\nproperty float x\nproperty float y\nproperty float z\nelement nothing 18446744073709551615\nend_header\n";
         let e = read(text.as_bytes(), Some(text.len() as u64), &limits()).unwrap_err();
-        assert_eq!(e.kind(), "truncated");
+        assert_eq!(e.kind(), FailureKind::Truncated);
         let text = "ply\nformat binary_little_endian 1.0\nelement vertex 0\nproperty float x\nproperty float y\nproperty float z\nelement nothing 18446744073709551615\nproperty int a\nend_header\n";
         let e = read(text.as_bytes(), None, &limits()).unwrap_err();
-        assert_eq!(e.kind(), "truncated");
+        assert_eq!(e.kind(), FailureKind::Truncated);
         let text = "ply\nformat binary_little_endian 1.0\nelement vertex 0\nproperty float x\nproperty float y\nproperty float z\nelement nothing 18446744073709551615\nend_header\n";
         let m = read(text.as_bytes(), None, &limits()).unwrap();
         assert_eq!(m.skipped["nothing"], usize::MAX);

@@ -668,6 +668,7 @@ pub fn show(tok: &[u8]) -> String {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::failure::FailureKind;
 
     fn src(bytes: &[u8]) -> Source<&[u8]> {
         Source::new(bytes, Format::Obj)
@@ -694,7 +695,7 @@ mod tests {
         let mut s = src(b"12345");
         let _: [u8; 2] = s.read_array("two").unwrap();
         let e = s.read_array::<4>("a float").unwrap_err();
-        assert_eq!(e.kind(), "truncated");
+        assert_eq!(e.kind(), FailureKind::Truncated);
         let m = e.to_string();
         assert!(m.contains("byte offset 2") && m.contains("a float (4 bytes)") && m.contains("after 3 bytes"), "{m}");
     }
@@ -707,7 +708,7 @@ mod tests {
         assert_eq!(s.text(), b"next");
         assert_eq!(s.line(), 4);
         let mut s = src(b"abc");
-        assert_eq!(s.skip_to_marker(b"$EndFoo", true).unwrap_err().kind(), "truncated");
+        assert_eq!(s.skip_to_marker(b"$EndFoo", true).unwrap_err().kind(), FailureKind::Truncated);
         let mut s = src(b"\n\n  $EndNodes\r\nrest");
         s.expect_marker(b"$EndNodes", false).unwrap();
         assert!(s.next_line().unwrap());
@@ -721,7 +722,7 @@ mod tests {
     fn overlong_lines_are_rejected() {
         let big = vec![b'x'; MAX_LINE_BYTES + 10];
         let mut s = src(&big);
-        assert_eq!(s.next_line().unwrap_err().kind(), "parse-error");
+        assert_eq!(s.next_line().unwrap_err().kind(), FailureKind::ParseError);
     }
 
     #[test]
@@ -730,17 +731,17 @@ mod tests {
         for i in 0..3 {
             k.vertex([i as f64, 0.0, 0.0], i + 1, Location::Line(1)).unwrap();
         }
-        assert_eq!(k.vertex([0.0; 3], 4, Location::Line(2)).unwrap_err().kind(), "too-many-vertices");
+        assert_eq!(k.vertex([0.0; 3], 4, Location::Line(2)).unwrap_err().kind(), FailureKind::TooManyVertices);
         k.polygon(&[0, 1, 2, 0], Location::Line(3)).unwrap();
         assert_eq!(k.mesh.triangles, vec![[0, 1, 2], [0, 2, 0]]);
         assert_eq!(k.mesh.n_polygons_triangulated, 1);
-        assert_eq!(k.polygon(&[0, 1, 2], Location::Line(4)).unwrap_err().kind(), "too-many-triangles");
+        assert_eq!(k.polygon(&[0, 1, 2], Location::Line(4)).unwrap_err().kind(), FailureKind::TooManyTriangles);
         k.polygon(&[0, 1], Location::Line(5)).unwrap();
         assert_eq!(k.mesh.skipped["polygon with fewer than 3 vertices"], 1);
         let e = k.vertex([f64::NAN, 0.0, 0.0], 9, Location::Line(7)).unwrap_err();
         assert!(e.to_string().contains("vertex 9") && e.to_string().contains("line 7"), "{e}");
         let e = check_coordinates(Format::Stl, [1e200, 0.0, 0.0], 1, Location::Byte(96)).unwrap_err();
-        assert_eq!(e.kind(), "coordinate-out-of-range");
+        assert_eq!(e.kind(), FailureKind::CoordinateOutOfRange);
     }
 
     #[test]

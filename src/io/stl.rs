@@ -270,6 +270,7 @@ fn read_ascii<R: BufRead>(src: &mut Source<R>, sink: &mut MeshSink) -> Result<()
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::failure::FailureKind;
     use crate::io::Limits;
 
     fn limits() -> Limits {
@@ -311,7 +312,7 @@ mod tests {
         let cut = &bytes[..bytes.len() - 7];
         for len in [Some(cut.len() as u64), None] {
             let e = read(cut, len, &limits()).unwrap_err();
-            assert_eq!(e.kind(), "truncated");
+            assert_eq!(e.kind(), FailureKind::Truncated);
             assert!(
                 matches!(e, IoError::TruncatedBinaryStl { n_triangles: 2, expected_bytes: 184, actual_bytes: 177 }),
                 "{e}"
@@ -319,7 +320,7 @@ mod tests {
             assert!(e.to_string().contains("184 bytes") && e.to_string().contains("177 bytes"));
         }
         let e = read(&bytes[..40], Some(40), &limits()).unwrap_err();
-        assert_eq!(e.kind(), "truncated");
+        assert_eq!(e.kind(), FailureKind::Truncated);
         assert!(e.to_string().contains("84-byte header"), "{e}");
     }
 
@@ -329,7 +330,7 @@ mod tests {
         bytes.extend_from_slice(&[1u8; 60]);
         for len in [Some(bytes.len() as u64), None] {
             let e = read(&bytes[..], len, &limits()).unwrap_err();
-            assert_eq!(e.kind(), "parse-error");
+            assert_eq!(e.kind(), FailureKind::ParseError);
             assert!(e.to_string().contains("declares 1 triangles") && e.to_string().contains("60 bytes more"), "{e}");
         }
     }
@@ -340,7 +341,7 @@ mod tests {
         t[1][2] = f32::NAN;
         let bytes = binary_stl(&[TRI, t], b"bin");
         let e = read(&bytes[..], Some(bytes.len() as u64), &limits()).unwrap_err();
-        assert_eq!(e.kind(), "non-finite-coordinate");
+        assert_eq!(e.kind(), FailureKind::NonFiniteCoordinate);
         // Second record starts at 134; its corner 1 at 134 + 24.
         assert!(e.to_string().contains("vertex 5") && e.to_string().contains("byte offset 158"), "{e}");
     }
@@ -350,9 +351,9 @@ mod tests {
         let mut bytes = binary_stl(&[TRI], b"bin");
         bytes[80..84].copy_from_slice(&u32::MAX.to_le_bytes());
         let e = read(&bytes[..], None, &limits()).unwrap_err();
-        assert_eq!(e.kind(), "too-many-triangles");
+        assert_eq!(e.kind(), FailureKind::TooManyTriangles);
         let e = read(&bytes[..], Some(bytes.len() as u64), &limits()).unwrap_err();
-        assert_eq!(e.kind(), "truncated");
+        assert_eq!(e.kind(), FailureKind::Truncated);
     }
 
     const ASCII: &str = "solid t\n facet normal 0 0 1\n  outer loop\n   vertex 0 0 0\n   vertex 1 0 0\n   vertex 0 1 0\n  endloop\n endfacet\n facet normal 0 0 0\n  outer loop\n   vertex 1 0 0\n   vertex 1 1 0\n   vertex 0 1 0\n   vertex 0.5 2 0\n  endloop\n endfacet\nendsolid t\n";
@@ -374,7 +375,7 @@ mod tests {
     fn ascii_errors_name_the_line() {
         let bad = ASCII.replace("   vertex 1 1 0", "   vertex 1 x 0");
         let e = read(bad.as_bytes(), None, &limits()).unwrap_err();
-        assert_eq!(e.kind(), "parse-error");
+        assert_eq!(e.kind(), FailureKind::ParseError);
         assert!(e.to_string().contains("line 12") && e.to_string().contains("`x` is not a number"), "{e}");
         let bad = ASCII.replace("  endloop\n endfacet\nendsolid", "  endloop\n endfacet\n vertex 0 0 0\nendsolid");
         let e = read(bad.as_bytes(), None, &limits()).unwrap_err();
@@ -384,11 +385,11 @@ mod tests {
         assert!(e.to_string().contains("line 6") && e.to_string().contains("3 coordinates, found 2"), "{e}");
         let bad = ASCII.replace("vertex 0 1 0\n  endloop", "vertex 0 1 nan\n  endloop");
         let e = read(bad.as_bytes(), None, &limits()).unwrap_err();
-        assert_eq!(e.kind(), "non-finite-coordinate");
+        assert_eq!(e.kind(), FailureKind::NonFiniteCoordinate);
         assert!(e.to_string().contains("vertex 3") && e.to_string().contains("line 6"), "{e}");
         let cut = &ASCII[..ASCII.find("   vertex 1 1 0").unwrap()];
         let e = read(cut.as_bytes(), None, &limits()).unwrap_err();
-        assert_eq!(e.kind(), "truncated");
+        assert_eq!(e.kind(), FailureKind::Truncated);
         assert!(e.to_string().contains("line 9"), "{e}");
         let two_vertices = ASCII.replace(
             "   vertex 0 1 0\n  endloop\n endfacet\n facet normal 0 0 0",

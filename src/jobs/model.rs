@@ -15,6 +15,8 @@ use std::str::FromStr;
 
 use serde::{Deserialize, Serialize};
 
+use crate::failure::FailureKind;
+
 /// An unguessable job id: a random (version 4) UUID, 122 random bits.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, PartialOrd, Ord)]
 pub struct JobId(uuid::Uuid);
@@ -93,21 +95,22 @@ impl JobState {
     }
 }
 
-/// Why a job failed: a stable machine-readable `kind` (e.g. `parse-error`,
-/// `too-many-triangles`, `time-limit-exceeded`, `interrupted`, `panic`) and a
+/// Why a job failed: a stable [`FailureKind`] (e.g. `parse-error`,
+/// `too-many-triangles`, `time-limit-exceeded`, `interrupted`) and a
 /// human-readable detail. The HTTP layer turns it into problem+json.
 #[derive(Debug, Clone, PartialEq, Eq, Serialize, Deserialize)]
 pub struct JobError {
-    /// Stable failure kind, lowercase with hyphens.
-    pub kind: String,
+    /// Stable failure kind (stored by its id; an unknown stored id reads
+    /// back as `internal-error`).
+    pub kind: FailureKind,
     /// What went wrong and, where possible, how to fix the input.
     pub detail: String,
 }
 
 impl JobError {
     /// A failure of `kind` with `detail`.
-    pub fn new(kind: impl Into<String>, detail: impl Into<String>) -> Self {
-        Self { kind: kind.into(), detail: detail.into() }
+    pub fn new(kind: FailureKind, detail: impl Into<String>) -> Self {
+        Self { kind, detail: detail.into() }
     }
 }
 

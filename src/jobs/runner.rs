@@ -28,6 +28,7 @@ use std::time::{Duration, Instant};
 
 use tracing::{error, info, warn};
 
+use crate::failure::FailureKind;
 use crate::pipeline::media_type_for;
 use crate::progress::{Progress, ProgressSink};
 
@@ -373,7 +374,7 @@ fn run_job(inner: &Arc<Inner>, rec: JobRecord, job: &Arc<RunningJob>) {
             error!(error = %e, dir = %out_dir.display(), "cannot prepare the output directory");
             let err = match crate::pipeline::error::storage_kind(&e) {
                 Some(kind) => storage::artifact_failure(kind),
-                None => JobError::new("internal-error", "the server could not store the job's files"),
+                None => JobError::new(FailureKind::InternalError, "the server could not store the job's files"),
             };
             Ok(Err(ExecError::Failed(err)))
         }
@@ -464,7 +465,10 @@ fn ending_of(
             inner.metrics.job_panicked();
             error!(panic = %panic_message(payload.as_ref()), "job panicked");
             Ending::Failed(
-                JobError::new("internal-error", "the job stopped because of an internal error; it has been logged"),
+                JobError::new(
+                    FailureKind::InternalError,
+                    "the job stopped because of an internal error; it has been logged",
+                ),
                 live_seconds,
             )
         }
@@ -473,7 +477,7 @@ fn ending_of(
             let limit = inner.config.job_timeout.as_secs_f64();
             Ending::Failed(
                 JobError::new(
-                    "time-limit-exceeded",
+                    FailureKind::TimeLimitExceeded,
                     format!("the job ran longer than the server's limit of {limit} s and was stopped"),
                 ),
                 live_seconds,
@@ -481,16 +485,17 @@ fn ending_of(
         }
         (_, Ok(Err(ExecError::Failed(e)))) => {
             info!(kind = %e.kind, detail = %e.detail, "job failed");
-            let e = if matches!(e.kind.as_str(), storage::STORAGE_FULL | storage::STORAGE_UNAVAILABLE) {
-                storage::artifact_failure(&e.kind)
+            let e = if matches!(e.kind, FailureKind::StorageFull | FailureKind::StorageUnavailable) {
+                storage::artifact_failure(e.kind)
             } else {
                 e
             };
             Ending::Failed(e, live_seconds)
         }
-        (None, Ok(Err(ExecError::Cancelled))) => {
-            Ending::Failed(JobError::new("internal-error", "the job stopped without being asked to"), live_seconds)
-        }
+        (None, Ok(Err(ExecError::Cancelled))) => Ending::Failed(
+            JobError::new(FailureKind::InternalError, "the job stopped without being asked to"),
+            live_seconds,
+        ),
         (_, Ok(Ok(outcome))) => match artifacts_on_disk(out_dir, &outcome.artifacts) {
             Ok(artifacts) => {
                 let mut secs = outcome.stage_seconds.clone();
@@ -503,7 +508,7 @@ fn ending_of(
                 error!(error = %e, "cannot list the job's artifacts");
                 let err = match crate::pipeline::error::storage_kind(&e) {
                     Some(kind) => storage::artifact_failure(kind),
-                    None => JobError::new("internal-error", "the server could not list the job's files"),
+                    None => JobError::new(FailureKind::InternalError, "the server could not list the job's files"),
                 };
                 Ending::Failed(err, live_seconds)
             }
@@ -562,8 +567,8 @@ fn record_ending(inner: &Inner, id: JobId, job: &RunningJob, mut ending: Ending)
             return None;
         }
         if start.elapsed() >= storage::RECORD_RETRY || inner.shutdown.load(Ordering::Relaxed) {
-            let kind = storage::store_error_kind(&err).unwrap_or(storage::STORAGE_UNAVAILABLE);
-            error!(error = %err, kind, "cannot record the end of the job; it waits in the unrecorded list");
+            let kind = storage::store_error_kind(&err).unwrap_or(FailureKind::StorageUnavailable);
+            error!(error = %err, kind = kind.as_str(), "cannot record the end of the job; it waits in the unrecorded list");
             let secs = match &ending {
                 Ending::Failed(_, s) | Ending::Succeeded(_, s, _) => s.clone(),
                 _ => job.stage_seconds_now(),

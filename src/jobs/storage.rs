@@ -18,6 +18,7 @@ use rusqlite::ErrorCode;
 use super::model::{JobError, JobId};
 use super::service::JobsError;
 use super::store::StoreError;
+use crate::failure::FailureKind;
 use crate::pipeline::error::storage_kind;
 
 /// How long a worker retries recording a job's end before handing it to
@@ -30,18 +31,15 @@ pub const MAX_BACKOFF: Duration = Duration::from_secs(2);
 /// Pause between two flushes of the unrecorded list.
 pub const FLUSH_INTERVAL: Duration = Duration::from_millis(500);
 
-/// Job failure kind of a full data directory (disk or quota).
-pub const STORAGE_FULL: &str = "storage-full";
-/// Job failure kind of a data directory that does not write (read-only, I/O error).
-pub const STORAGE_UNAVAILABLE: &str = "storage-unavailable";
-
 /// The storage kind of a store error: `storage-full` for `SQLITE_FULL`,
 /// `storage-unavailable` for a read-only database or an I/O error.
-pub fn store_error_kind(e: &StoreError) -> Option<&'static str> {
+pub fn store_error_kind(e: &StoreError) -> Option<FailureKind> {
     match e {
         StoreError::Sqlite(rusqlite::Error::SqliteFailure(f, _)) => match f.code {
-            ErrorCode::DiskFull => Some(STORAGE_FULL),
-            ErrorCode::ReadOnly | ErrorCode::SystemIoFailure | ErrorCode::CannotOpen => Some(STORAGE_UNAVAILABLE),
+            ErrorCode::DiskFull => Some(FailureKind::StorageFull),
+            ErrorCode::ReadOnly | ErrorCode::SystemIoFailure | ErrorCode::CannotOpen => {
+                Some(FailureKind::StorageUnavailable)
+            }
             _ => None,
         },
         _ => None,
@@ -50,7 +48,7 @@ pub fn store_error_kind(e: &StoreError) -> Option<&'static str> {
 
 /// The storage kind of a job-service error ([`storage_kind`] for file
 /// errors, [`store_error_kind`] for the database).
-pub fn jobs_error_kind(e: &JobsError) -> Option<&'static str> {
+pub fn jobs_error_kind(e: &JobsError) -> Option<FailureKind> {
     match e {
         JobsError::Io { source, .. } => storage_kind(source),
         JobsError::Store(s) => store_error_kind(s),
@@ -58,18 +56,20 @@ pub fn jobs_error_kind(e: &JobsError) -> Option<&'static str> {
     }
 }
 
-/// The job failure recorded for a job whose end could not be stored.
-pub fn unrecorded_failure(kind: &str) -> JobError {
-    let what = if kind == STORAGE_FULL { "was full" } else { "did not accept writes" };
+/// The job failure recorded for a job whose end could not be stored
+/// (`kind` is `storage-full` or `storage-unavailable`).
+pub fn unrecorded_failure(kind: FailureKind) -> JobError {
+    let what = if kind == FailureKind::StorageFull { "was full" } else { "did not accept writes" };
     JobError::new(
         kind,
         format!("the job's result could not be stored because the server's storage {what}; submit the job again"),
     )
 }
 
-/// The failure recorded for a job whose files could not be written.
-pub fn artifact_failure(kind: &str) -> JobError {
-    let what = if kind == STORAGE_FULL { "is full" } else { "does not accept writes" };
+/// The failure recorded for a job whose files could not be written
+/// (`kind` is `storage-full` or `storage-unavailable`).
+pub fn artifact_failure(kind: FailureKind) -> JobError {
+    let what = if kind == FailureKind::StorageFull { "is full" } else { "does not accept writes" };
     JobError::new(kind, format!("the job's files could not be written because the server's storage {what}"))
 }
 
@@ -114,16 +114,16 @@ mod tests {
     #[test]
     fn full_and_read_only_errors_have_storage_kinds() {
         let os = |code| std::io::Error::from_raw_os_error(code);
-        assert_eq!(storage_kind(&os(28)), Some(STORAGE_FULL)); // ENOSPC
-        assert_eq!(storage_kind(&os(122)), Some(STORAGE_FULL)); // EDQUOT
-        assert_eq!(storage_kind(&os(30)), Some(STORAGE_UNAVAILABLE)); // EROFS
+        assert_eq!(storage_kind(&os(28)), Some(FailureKind::StorageFull)); // ENOSPC
+        assert_eq!(storage_kind(&os(122)), Some(FailureKind::StorageFull)); // EDQUOT
+        assert_eq!(storage_kind(&os(30)), Some(FailureKind::StorageUnavailable)); // EROFS
         assert_eq!(storage_kind(&os(2)), None); // ENOENT
         let sqlite = |code| StoreError::Sqlite(rusqlite::Error::SqliteFailure(rusqlite::ffi::Error::new(code), None));
-        assert_eq!(store_error_kind(&sqlite(rusqlite::ffi::SQLITE_FULL)), Some(STORAGE_FULL));
-        assert_eq!(store_error_kind(&sqlite(rusqlite::ffi::SQLITE_READONLY)), Some(STORAGE_UNAVAILABLE));
+        assert_eq!(store_error_kind(&sqlite(rusqlite::ffi::SQLITE_FULL)), Some(FailureKind::StorageFull));
+        assert_eq!(store_error_kind(&sqlite(rusqlite::ffi::SQLITE_READONLY)), Some(FailureKind::StorageUnavailable));
         assert_eq!(store_error_kind(&sqlite(rusqlite::ffi::SQLITE_CONSTRAINT)), None);
         let e = JobsError::Io { what: "x".into(), source: os(28) };
-        assert_eq!(jobs_error_kind(&e), Some(STORAGE_FULL));
+        assert_eq!(jobs_error_kind(&e), Some(FailureKind::StorageFull));
     }
 
     #[test]

@@ -13,6 +13,8 @@ use std::sync::{Mutex, MutexGuard};
 
 use rusqlite::{Connection, OptionalExtension, Row, params};
 
+use crate::failure::FailureKind;
+
 use super::model::{Artifact, JobError, JobId, JobPage, JobRecord, JobState, now_ms};
 
 /// Errors of the job store.
@@ -191,7 +193,9 @@ impl RawRow {
         let id = self.id.parse::<JobId>().map_err(|e| corrupt(e.to_string()))?;
         let state = JobState::parse(&self.state).ok_or_else(|| corrupt(format!("unknown state `{}`", self.state)))?;
         let error = match (self.error_kind, self.error_detail) {
-            (Some(kind), detail) => Some(JobError { kind, detail: detail.unwrap_or_default() }),
+            (Some(kind), detail) => {
+                Some(JobError { kind: FailureKind::from_stored(&kind), detail: detail.unwrap_or_default() })
+            }
             (None, _) => None,
         };
         Ok(JobRecord {
@@ -453,7 +457,7 @@ impl Store {
         let n = self.conn().execute(
             "UPDATE jobs SET state = 'failed', finished_ms = ?2, error_kind = ?3, error_detail = ?4, \
              stage_seconds = ?5 WHERE id = ?1 AND state IN ('queued', 'running')",
-            params![id.to_string(), now_ms(), error.kind, error.detail, json("stage_seconds", stage_seconds)?],
+            params![id.to_string(), now_ms(), error.kind.as_str(), error.detail, json("stage_seconds", stage_seconds)?],
         )?;
         Ok(n == 1)
     }
@@ -515,7 +519,7 @@ impl Store {
                     id.parse::<JobId>().map_err(|e| StoreError::Corrupt { id: id.clone(), what: e.to_string() })?;
                 if attempts >= i64::from(max_attempts) {
                     tx.execute(
-                        "UPDATE jobs SET state = 'failed', finished_ms = ?2, error_kind = 'interrupted', \
+                        "UPDATE jobs SET state = 'failed', finished_ms = ?2, error_kind = ?4, \
                          error_detail = ?3 WHERE id = ?1",
                         params![
                             id,
@@ -523,13 +527,14 @@ impl Store {
                             format!(
                                 "the server stopped while this job was running, {attempts} times; \
                                  it is not retried again (the input may be too large for this server)"
-                            )
+                            ),
+                            FailureKind::Interrupted.as_str(),
                         ],
                     )?;
                     rec.failed.push(job);
                 } else if crashes >= MAX_CRASHES {
                     tx.execute(
-                        "UPDATE jobs SET state = 'failed', finished_ms = ?2, error_kind = 'crashed-server', \
+                        "UPDATE jobs SET state = 'failed', finished_ms = ?2, error_kind = ?4, \
                          error_detail = ?3 WHERE id = ?1",
                         params![
                             id,
@@ -538,7 +543,8 @@ impl Store {
                                 "the server process stopped while this job was running, twice ({crashes} times, \
                                  the last time after running it alone); it likely ran out of memory, so it is not \
                                  retried: lower its sizes (triangles, frames.max_tets or frames.target_size)"
-                            )
+                            ),
+                            FailureKind::CrashedServer.as_str(),
                         ],
                     )?;
                     rec.crashed.push(job);
@@ -716,6 +722,22 @@ mod tests {
     }
 
     #[test]
+    fn failure_kinds_round_trip_and_unknown_stored_kinds_read_as_internal_error() {
+        let s = Store::open_in_memory().unwrap();
+        let a = insert(&s, 10).unwrap();
+        s.claim(a.id).unwrap().unwrap();
+        let e = JobError::new(FailureKind::InvalidTargetSize, "no interior lattice point");
+        assert!(s.finish_failed(a.id, &e, &BTreeMap::new()).unwrap());
+        assert_eq!(s.get(a.id).unwrap().unwrap().error, Some(e));
+        // Kinds an older version stored (`write-failed`, `io`) or a newer one may store.
+        for old in ["write-failed", "io", "kind-from-the-future"] {
+            s.conn().execute("UPDATE jobs SET error_kind = ?2 WHERE id = ?1", params![a.id.to_string(), old]).unwrap();
+            let got = s.get(a.id).unwrap().unwrap().error.unwrap();
+            assert_eq!(got, JobError::new(FailureKind::InternalError, "no interior lattice point"), "{old}");
+        }
+    }
+
+    #[test]
     fn list_is_newest_first_and_paginates() {
         let s = Store::open_in_memory().unwrap();
         let ids: Vec<JobId> = (0..5).map(|_| insert(&s, 100).unwrap().id).collect();
@@ -743,12 +765,12 @@ mod tests {
         assert_eq!(rec.crashed, vec![a.id]);
         let j = s.get(a.id).unwrap().unwrap();
         assert_eq!((j.state, j.crashes), (JobState::Failed, 2));
-        assert_eq!(j.error.unwrap().kind, "crashed-server");
+        assert_eq!(j.error.unwrap().kind, FailureKind::CrashedServer);
         // --max-attempts 1: the first interruption already fails it.
         let b = insert(&s, 10).unwrap();
         s.claim(b.id).unwrap().unwrap();
         assert_eq!(s.recover_interrupted(1).unwrap().failed, vec![b.id]);
-        assert_eq!(s.get(b.id).unwrap().unwrap().error.unwrap().kind, "interrupted");
+        assert_eq!(s.get(b.id).unwrap().unwrap().error.unwrap().kind, FailureKind::Interrupted);
         assert_eq!(s.count_by_state().unwrap()[&JobState::Failed], 2);
         assert!(s.claim(b.id).unwrap().is_none(), "a failed job cannot be claimed");
     }

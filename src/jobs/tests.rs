@@ -5,6 +5,7 @@ use std::sync::atomic::{AtomicUsize, Ordering};
 use std::time::{Duration, Instant};
 
 use super::*;
+use crate::failure::FailureKind;
 use crate::progress::Progress;
 
 fn config(dir: &std::path::Path) -> JobsConfig {
@@ -44,14 +45,15 @@ fn wait_for_cancel(p: &Progress) -> Result<JobOutcome, ExecError> {
         p.check().map_err(|_| ExecError::Cancelled)?;
         std::thread::sleep(Duration::from_millis(5));
     }
-    Err(ExecError::Failed(JobError::new("test", "never cancelled")))
+    Err(ExecError::Failed(JobError::new(FailureKind::InternalError, "never cancelled")))
 }
 
 #[tokio::test]
 async fn a_job_runs_writes_artifacts_and_reports_timings() {
     let dir = tempfile::tempdir().unwrap();
     let exec = |job: &JobInput, p: &Progress| -> Result<JobOutcome, ExecError> {
-        let input = std::fs::read(&job.input).map_err(|e| ExecError::Failed(JobError::new("io", e.to_string())))?;
+        let input = std::fs::read(&job.input)
+            .map_err(|e| ExecError::Failed(JobError::new(FailureKind::InternalError, e.to_string())))?;
         p.stage("copy", 0.0, 1.0).set(1.0);
         std::fs::write(job.out_dir.join("copy.stl"), &input).unwrap();
         Ok(JobOutcome {
@@ -85,7 +87,7 @@ async fn failures_and_panics_fail_only_their_job() {
     let n2 = n.clone();
     let exec = move |_: &JobInput, _: &Progress| -> Result<JobOutcome, ExecError> {
         match n2.fetch_add(1, Ordering::SeqCst) {
-            0 => Err(ExecError::Failed(JobError::new("parse-error", "line 3: expected `vertex`"))),
+            0 => Err(ExecError::Failed(JobError::new(FailureKind::ParseError, "line 3: expected `vertex`"))),
             1 => panic!("boom in a job"),
             _ => Ok(JobOutcome::default()),
         }
@@ -98,9 +100,9 @@ async fn failures_and_panics_fail_only_their_job() {
     let b = wait_for(&svc, b.id, |r| r.state.is_final()).await;
     let c = wait_for(&svc, c.id, |r| r.state.is_final()).await;
     assert_eq!(a.state, JobState::Failed);
-    assert_eq!(a.error, Some(JobError::new("parse-error", "line 3: expected `vertex`")));
+    assert_eq!(a.error, Some(JobError::new(FailureKind::ParseError, "line 3: expected `vertex`")));
     assert_eq!(b.state, JobState::Failed);
-    assert_eq!(b.error.as_ref().unwrap().kind, "internal-error");
+    assert_eq!(b.error.as_ref().unwrap().kind, FailureKind::InternalError);
     assert!(!b.error.unwrap().detail.contains("boom"), "panic text must not reach clients");
     assert_eq!(c.state, JobState::Succeeded);
     assert!(svc.metrics_text().await.unwrap().contains("meshatlas_job_panics_total 1"));
@@ -158,7 +160,7 @@ async fn the_time_limit_fails_a_job_with_a_clear_reason() {
     let done = wait_for(&svc, rec.id, |r| r.state.is_final()).await;
     assert_eq!(done.state, JobState::Failed);
     let e = done.error.unwrap();
-    assert_eq!(e.kind, "time-limit-exceeded");
+    assert_eq!(e.kind, FailureKind::TimeLimitExceeded);
     assert!(e.detail.contains("0.2 s"), "{}", e.detail);
 }
 

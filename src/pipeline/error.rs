@@ -1,8 +1,9 @@
-//! Errors of a pipeline run, each with a stable `kind` the job service
-//! stores and the HTTP layer maps to a problem type.
+//! Errors of a pipeline run, each with a stable [`FailureKind`] the job
+//! service stores and the HTTP layer maps to a problem type.
 
 use std::path::PathBuf;
 
+use crate::failure::FailureKind;
 use crate::io::{IoError, WriteError};
 use crate::progress::Cancelled;
 
@@ -23,7 +24,7 @@ pub enum PipelineError {
         /// What went wrong, in terms of the input.
         message: String,
         /// Stable failure kind (`stage-failed`, `no-valid-map`, …).
-        kind: &'static str,
+        kind: FailureKind,
     },
     /// An output file could not be written.
     #[error("cannot write {}: {source}", path.display())]
@@ -43,21 +44,25 @@ impl From<Cancelled> for PipelineError {
 
 impl PipelineError {
     /// A failure of stage `stage` with the stable `kind` and a message for the user.
-    pub fn stage(stage: &'static str, kind: &'static str, message: impl Into<String>) -> Self {
+    pub fn stage(stage: &'static str, kind: FailureKind, message: impl Into<String>) -> Self {
         PipelineError::Stage { stage, message: message.into(), kind }
     }
 
-    /// Stable machine-readable kind: the reader's kind for load errors
-    /// (`parse-error`, `too-many-triangles`, …), `cancelled`, `stage-failed`,
-    /// `storage-full` / `storage-unavailable` ([`storage_kind`]) or
-    /// `write-failed`.
-    pub fn kind(&self) -> &'static str {
+    /// Stable failure kind: the reader's kind for load errors
+    /// (`parse-error`, `too-many-triangles`, …), the stage's kind,
+    /// `storage-full` / `storage-unavailable` ([`storage_kind`]) for a write
+    /// the storage refused, and `internal-error` for any other write error
+    /// and for `Cancelled` (not a failure: the job runner records a
+    /// cancelled run as cancelled or timed out before it asks for a kind).
+    pub fn kind(&self) -> FailureKind {
         match self {
             PipelineError::Load(e) => e.kind(),
-            PipelineError::Cancelled => "cancelled",
-            PipelineError::Stage { kind, .. } => kind,
-            PipelineError::Write { source: WriteError::Io(e), .. } => storage_kind(e).unwrap_or("write-failed"),
-            PipelineError::Write { .. } => "write-failed",
+            PipelineError::Cancelled => FailureKind::InternalError,
+            PipelineError::Stage { kind, .. } => *kind,
+            PipelineError::Write { source: WriteError::Io(e), .. } => {
+                storage_kind(e).unwrap_or(FailureKind::InternalError)
+            }
+            PipelineError::Write { .. } => FailureKind::InternalError,
         }
     }
 }
@@ -66,11 +71,11 @@ impl PipelineError {
 /// data: `storage-full` for a full disk or an exhausted quota (`ENOSPC`,
 /// `EDQUOT`), `storage-unavailable` for a read-only file system (`EROFS`);
 /// `None` for other errors.
-pub fn storage_kind(e: &std::io::Error) -> Option<&'static str> {
+pub fn storage_kind(e: &std::io::Error) -> Option<FailureKind> {
     use std::io::ErrorKind;
     match e.kind() {
-        ErrorKind::StorageFull | ErrorKind::QuotaExceeded => Some("storage-full"),
-        ErrorKind::ReadOnlyFilesystem => Some("storage-unavailable"),
+        ErrorKind::StorageFull | ErrorKind::QuotaExceeded => Some(FailureKind::StorageFull),
+        ErrorKind::ReadOnlyFilesystem => Some(FailureKind::StorageUnavailable),
         _ => None,
     }
 }

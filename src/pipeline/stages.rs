@@ -13,6 +13,7 @@ use crate::atlas::{AtlasError, build_atlas, write_atlas_msh, write_atlas_uv_vtu,
 use crate::crossfield::{
     CrossfieldError, compute_crossfield, write_crossfield_msh_as, write_crossfield_vtu, write_singularities_json,
 };
+use crate::failure::FailureKind;
 use crate::frames::{FramesError, compute_frame_field, write_frames_vtu, write_singular_edges_vtu};
 use crate::io::WriteError;
 use crate::mesh::{Topology, TriMesh};
@@ -51,8 +52,8 @@ pub fn run_atlas(
 ) -> Result<StageOutput, PipelineError> {
     let atlas = build_atlas(&products.surface, &params.atlas, progress).map_err(|e| match e {
         AtlasError::Cancelled => PipelineError::Cancelled,
-        AtlasError::NoValidMap { .. } => PipelineError::stage("atlas", "no-valid-map", e.to_string()),
-        other => PipelineError::stage("atlas", "stage-failed", other.to_string()),
+        AtlasError::NoValidMap { .. } => PipelineError::stage("atlas", FailureKind::NoValidMap, e.to_string()),
+        other => PipelineError::stage("atlas", FailureKind::StageFailed, other.to_string()),
     })?;
     progress.check()?;
     let write_start = std::time::Instant::now();
@@ -70,7 +71,7 @@ pub fn run_atlas(
     let artifacts = vec![msh?, vtu?, uv?];
     let write_seconds = write_start.elapsed().as_secs_f64();
     let summary = serde_json::to_value(&atlas.report)
-        .map_err(|e| PipelineError::stage("atlas", "stage-failed", e.to_string()))?;
+        .map_err(|e| PipelineError::stage("atlas", FailureKind::StageFailed, e.to_string()))?;
     products.features = Some(atlas.features);
     Ok(StageOutput { summary, artifacts, write_seconds })
 }
@@ -90,9 +91,9 @@ pub fn run_crossfield(
     let field = compute_crossfield(surface, &topo, &aligned, &params.crossfield, progress).map_err(|e| match e {
         CrossfieldError::Cancelled(_) => PipelineError::Cancelled,
         CrossfieldError::InconsistentOrientation { .. } => {
-            PipelineError::stage("crossfield", "non-orientable-surface", e.to_string())
+            PipelineError::stage("crossfield", FailureKind::NonOrientableSurface, e.to_string())
         }
-        other => PipelineError::stage("crossfield", "stage-failed", other.to_string()),
+        other => PipelineError::stage("crossfield", FailureKind::StageFailed, other.to_string()),
     })?;
     progress.check()?;
     let write_start = std::time::Instant::now();
@@ -103,7 +104,7 @@ pub fn run_crossfield(
     ];
     let write_seconds = write_start.elapsed().as_secs_f64();
     let summary = serde_json::to_value(&field.report)
-        .map_err(|e| PipelineError::stage("crossfield", "stage-failed", e.to_string()))?;
+        .map_err(|e| PipelineError::stage("crossfield", FailureKind::StageFailed, e.to_string()))?;
     Ok(StageOutput { summary, artifacts, write_seconds })
 }
 
@@ -118,11 +119,11 @@ pub fn run_frames(
     let field = compute_frame_field(&products.surface, products.volume.as_ref(), &params.frames, progress).map_err(
         |e| match e {
             FramesError::Cancelled(_) => PipelineError::Cancelled,
-            FramesError::OpenSurface { .. } => PipelineError::stage("frames", "open-surface", e.to_string()),
+            FramesError::OpenSurface { .. } => PipelineError::stage("frames", FailureKind::OpenSurface, e.to_string()),
             FramesError::TooManyTets { .. } | FramesError::NoInterior { .. } => {
-                PipelineError::stage("frames", "invalid-target-size", e.to_string())
+                PipelineError::stage("frames", FailureKind::InvalidTargetSize, e.to_string())
             }
-            other => PipelineError::stage("frames", "stage-failed", other.to_string()),
+            other => PipelineError::stage("frames", FailureKind::StageFailed, other.to_string()),
         },
     )?;
     progress.check()?;
@@ -133,6 +134,6 @@ pub fn run_frames(
     ];
     let write_seconds = write_start.elapsed().as_secs_f64();
     let summary = serde_json::to_value(&field.report)
-        .map_err(|e| PipelineError::stage("frames", "stage-failed", e.to_string()))?;
+        .map_err(|e| PipelineError::stage("frames", FailureKind::StageFailed, e.to_string()))?;
     Ok(StageOutput { summary, artifacts, write_seconds })
 }

@@ -3,6 +3,7 @@
 use std::sync::Arc;
 use std::time::{Duration, Instant};
 
+use meshatlas::failure::FailureKind;
 use meshatlas::http::{AppState, HttpLimits};
 use meshatlas::jobs::{ExecError, Executor, JobError, JobInput, JobOutcome, JobService, JobsConfig};
 use meshatlas::progress::Progress;
@@ -102,7 +103,8 @@ pub async fn expect_problem(resp: reqwest::Response, status: u16, kind: &str) ->
 /// Executor that copies the input to `copy.bin` and reports its size.
 pub fn copy_exec() -> Arc<dyn Executor> {
     Arc::new(|job: &JobInput, p: &Progress| -> Result<JobOutcome, ExecError> {
-        let bytes = std::fs::read(&job.input).map_err(|e| ExecError::Failed(JobError::new("io", e.to_string())))?;
+        let bytes = std::fs::read(&job.input)
+            .map_err(|e| ExecError::Failed(JobError::new(FailureKind::InternalError, e.to_string())))?;
         let s = p.stage("copy", 0.0, 1.0);
         std::fs::write(job.out_dir.join("copy.bin"), &bytes).unwrap();
         s.set(1.0);
@@ -123,6 +125,6 @@ pub fn spin_exec() -> Arc<dyn Executor> {
             p.check().map_err(|_| ExecError::Cancelled)?;
             std::thread::sleep(Duration::from_millis(5));
         }
-        Err(ExecError::Failed(JobError::new("test", "never cancelled")))
+        Err(ExecError::Failed(JobError::new(FailureKind::InternalError, "never cancelled")))
     })
 }

@@ -3,6 +3,7 @@
 use std::sync::Arc;
 
 use crate::common::{Server, copy_exec, expect_problem, spin_exec};
+use meshatlas::failure::FailureKind;
 use meshatlas::jobs::{ExecError, JobError, JobInput, JobOutcome};
 use meshatlas::progress::Progress;
 
@@ -155,7 +156,7 @@ async fn a_full_queue_answers_429_with_retry_after() {
 async fn server_errors_are_generic_and_job_failures_are_problems() {
     let exec = Arc::new(|job: &JobInput, _: &Progress| -> Result<JobOutcome, ExecError> {
         if std::fs::read(&job.input).unwrap() == b"big" {
-            return Err(ExecError::Failed(JobError::new("too-many-triangles", "9 triangles, the cap is 4")));
+            return Err(ExecError::Failed(JobError::new(FailureKind::TooManyTriangles, "9 triangles, the cap is 4")));
         }
         std::fs::write(job.out_dir.join("a.json"), b"{}").unwrap();
         Ok(JobOutcome::default())

@@ -222,6 +222,7 @@ fn read_elements_binary<R: BufRead>(
 
 #[cfg(test)]
 mod tests {
+    use crate::failure::FailureKind;
     use crate::io::Limits;
     use crate::io::msh_common::read;
 
@@ -245,7 +246,7 @@ mod tests {
     fn duplicate_node_tag_with_other_coordinates_is_refused() {
         let bad = ASCII.replace("7 9 9 9", "20 9 9 9");
         let e = read(bad.as_bytes(), &lim()).unwrap_err();
-        assert_eq!(e.kind(), "parse-error");
+        assert_eq!(e.kind(), FailureKind::ParseError);
         let msg = e.to_string();
         assert!(
             msg.contains("node tag 20 is defined twice") && msg.contains("line 11") && msg.contains("line 14"),
@@ -261,7 +262,7 @@ mod tests {
     fn ascii_errors() {
         let bad = ASCII.replace("3 2 2 0 1 10 30 20", "3 2 2 0 1 10 30 21");
         let e = read(bad.as_bytes(), &lim()).unwrap_err();
-        assert_eq!(e.kind(), "index-out-of-range");
+        assert_eq!(e.kind(), FailureKind::IndexOutOfRange);
         assert!(
             e.to_string().contains("element 3")
                 && e.to_string().contains("vertex 21")
@@ -270,7 +271,7 @@ mod tests {
         );
         let bad = ASCII.replace("30 0 1 0", "30 0 inf 0");
         let e = read(bad.as_bytes(), &lim()).unwrap_err();
-        assert_eq!(e.kind(), "non-finite-coordinate");
+        assert_eq!(e.kind(), FailureKind::NonFiniteCoordinate);
         assert!(e.to_string().contains("vertex 30") && e.to_string().contains("line 12"), "{e}");
         let bad = ASCII.replace("$Nodes\n5\n", "$Nodes\n4\n");
         let e = read(bad.as_bytes(), &lim()).unwrap_err();
@@ -283,7 +284,7 @@ mod tests {
         assert!(e.to_string().contains("more than 3 nodes"), "{e}");
         let cut = &ASCII[..ASCII.find("$NodeData").unwrap() + 20];
         let e = read(cut.as_bytes(), &lim()).unwrap_err();
-        assert_eq!(e.kind(), "truncated");
+        assert_eq!(e.kind(), FailureKind::Truncated);
         assert!(e.to_string().contains("$EndNodeData"), "{e}");
         let bad = ASCII.replace("5 4 2 0 1 10 20 30 40", "5 200 2 0 1 10 20 30 40 50 60");
         let m = read(bad.as_bytes(), &lim()).unwrap();
@@ -318,7 +319,7 @@ mod tests {
         assert_eq!(m.skipped["Line 2"], 1);
         let b = binary();
         let e = read(&b[..b.len() - 30], &lim()).unwrap_err();
-        assert_eq!(e.kind(), "truncated");
+        assert_eq!(e.kind(), FailureKind::Truncated);
         assert!(e.to_string().contains("byte offset"), "{e}");
     }
 }

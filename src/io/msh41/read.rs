@@ -386,6 +386,7 @@ fn read_elements<R: BufRead>(
 
 #[cfg(test)]
 mod tests {
+    use crate::failure::FailureKind;
     use crate::io::Limits;
     use crate::io::msh_common::read;
 
@@ -411,7 +412,7 @@ mod tests {
     fn ascii_errors() {
         let bad = ASCII.replace("3 3 7 8", "3 3 7 6");
         let e = read(bad.as_bytes(), &lim()).unwrap_err();
-        assert_eq!(e.kind(), "index-out-of-range");
+        assert_eq!(e.kind(), FailureKind::IndexOutOfRange);
         assert!(
             e.to_string().contains("element 3")
                 && e.to_string().contains("vertex 6")
@@ -425,7 +426,7 @@ mod tests {
         let e = read(bad.as_bytes(), &lim()).unwrap_err();
         assert!(e.to_string().contains("parametric flag 2") && e.to_string().contains("line 14"), "{e}");
         let bad = ASCII.replace("$EndEntities", "$EndEntitie");
-        assert_eq!(read(bad.as_bytes(), &lim()).unwrap_err().kind(), "truncated");
+        assert_eq!(read(bad.as_bytes(), &lim()).unwrap_err().kind(), FailureKind::Truncated);
     }
 
     /// The reproduction of issue 11 item 7: tag 3 twice, at (0, 1, 0) and (5, 5, 5).
@@ -434,7 +435,7 @@ mod tests {
     #[test]
     fn duplicate_node_tag_with_other_coordinates_is_refused() {
         let e = read(DUPLICATE.as_bytes(), &lim()).unwrap_err();
-        assert_eq!(e.kind(), "parse-error");
+        assert_eq!(e.kind(), FailureKind::ParseError);
         let msg = e.to_string();
         assert!(
             msg.contains("node tag 3 is defined twice") && msg.contains("line 13") && msg.contains("line 14"),
@@ -451,7 +452,7 @@ mod tests {
     fn header_totals_must_match_the_blocks() {
         let bad = ASCII.replace("$Nodes\n2 5 3 1000", "$Nodes\n2 6 3 1000");
         let e = read(bad.as_bytes(), &lim()).unwrap_err();
-        assert_eq!(e.kind(), "parse-error");
+        assert_eq!(e.kind(), FailureKind::ParseError);
         assert!(
             e.to_string().contains("declares 6 nodes, but its blocks hold 5") && e.to_string().contains("line 10"),
             "{e}"
@@ -468,7 +469,7 @@ mod tests {
     fn tags_outside_the_header_range_are_refused() {
         let bad = ASCII.replace("$Nodes\n2 5 3 1000", "$Nodes\n2 5 3 999");
         let e = read(bad.as_bytes(), &lim()).unwrap_err();
-        assert_eq!(e.kind(), "parse-error");
+        assert_eq!(e.kind(), FailureKind::ParseError);
         assert!(e.to_string().contains("node tag 1000 is outside") && e.to_string().contains("line 15"), "{e}");
         let bad = ASCII.replace("$Elements\n3 4 1 4", "$Elements\n3 4 2 4");
         let e = read(bad.as_bytes(), &lim()).unwrap_err();
@@ -486,7 +487,7 @@ mod tests {
     fn unknown_element_type_is_unsupported_naming_type_and_block() {
         let bad = ASCII.replace("$Elements\n3 4 1 4\n", "$Elements\n4 5 1 5\n0 1 200 1\n5 2 3 4 5 6\n");
         let e = read(bad.as_bytes(), &lim()).unwrap_err();
-        assert_eq!(e.kind(), "unsupported");
+        assert_eq!(e.kind(), FailureKind::Unsupported);
         let msg = e.to_string();
         assert!(msg.contains("element type 200") && msg.contains("block 1 of 4") && msg.contains("line 26"), "{msg}");
     }
@@ -569,12 +570,12 @@ mod tests {
         // Claim 2^62 node blocks: reading stops at the end of the data.
         let at = b.windows(7).position(|w| w == b"$Nodes\n").unwrap() + 7;
         b[at..at + 8].copy_from_slice(&(1u64 << 62).to_le_bytes());
-        assert_eq!(read(&b[..], &lim()).unwrap_err().kind(), "parse-error");
+        assert_eq!(read(&b[..], &lim()).unwrap_err().kind(), FailureKind::ParseError);
         let mut b = binary(false);
         let at = b.windows(10).position(|w| w == b"$Elements\n").unwrap() + 10 + 32 + 8;
         b[at..at + 4].copy_from_slice(&34i32.to_le_bytes());
         let e = read(&b[..], &lim()).unwrap_err();
-        assert_eq!(e.kind(), "unsupported");
+        assert_eq!(e.kind(), FailureKind::Unsupported);
         assert!(e.to_string().contains("element type 34 in element block 1 of 3"), "{e}");
     }
 }
