@@ -380,6 +380,15 @@ impl ProgressSink for Bar {
     }
 }
 
+/// What `meshatlas run --json` prints: the pipeline report and the peak
+/// resident set size.
+#[derive(serde::Serialize)]
+struct JsonOutput<'a> {
+    #[serde(flatten)]
+    report: &'a meshatlas::pipeline::PipelineReport,
+    peak_rss_kb: Option<u64>,
+}
+
 /// Peak resident set size of this process in kB (Linux `VmHWM`).
 fn peak_rss_kb() -> Option<u64> {
     let status = std::fs::read_to_string("/proc/self/status").ok()?;
@@ -429,36 +438,12 @@ fn run(args: RunArgs) -> Result<(), String> {
     let report = result.map_err(|e| format!("{}: {e} [{}]", args.input.display(), e.kind()))?;
     let peak = peak_rss_kb();
     if args.json {
-        let mut v = serde_json::to_value(&report).map_err(|e| e.to_string())?;
-        v["peak_rss_kb"] = serde_json::json!(peak);
-        println!("{}", serde_json::to_string_pretty(&v).map_err(|e| e.to_string())?);
+        let out = JsonOutput { report: &report, peak_rss_kb: peak };
+        println!("{}", serde_json::to_string_pretty(&out).map_err(|e| e.to_string())?);
         return Ok(());
     }
-    println!("input      {} ({}, {} bytes)", report.input.name, report.input.format, report.input.bytes);
-    println!("surface    {} vertices, {} triangles", report.input.n_vertices, report.input.n_triangles);
-    if let Some(n) = report.input.n_tets {
-        println!("volume     {n} tetrahedra");
-    }
-    let r = serde_json::to_value(&report.repair).map_err(|e| e.to_string())?;
-    let n = |k: &str| r.get(k).and_then(serde_json::Value::as_i64).unwrap_or(0);
-    println!(
-        "repair     welded {} vertices, removed {} triangles, flipped {}, dropped {} unreferenced vertices",
-        n("n_vertices_welded_exact") + n("n_vertices_welded_tolerance"),
-        n("n_zero_area_triangles_removed") + n("n_degenerate_triangles_removed") + n("n_duplicate_triangles_removed"),
-        n("n_triangles_flipped"),
-        n("n_unreferenced_vertices_dropped"),
-    );
-    println!(
-        "topology   {} components, {} boundary loops, χ = {}, genus {}, {} non-manifold edges, {} non-manifold vertices",
-        n("n_components"),
-        n("n_boundary_loops"),
-        n("euler_characteristic"),
-        r.get("genus").map(ToString::to_string).unwrap_or_else(|| "-".into()),
-        n("n_nonmanifold_edges"),
-        n("n_nonmanifold_vertices"),
-    );
-    for (name, summary) in &report.stages {
-        println!("{name:<10} {}", serde_json::to_string(summary).map_err(|e| e.to_string())?);
+    for line in report.summary_lines() {
+        println!("{line}");
     }
     for t in &report.timings {
         println!("time       {:<10} {:>10.3} s", t.step, t.seconds);

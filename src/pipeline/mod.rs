@@ -20,7 +20,7 @@ pub mod stages;
 pub use error::PipelineError;
 pub use memory::{MemoryEstimate, peak_memory_estimate};
 pub use params::{ParamsError, PipelineParams, StageName, parse_params};
-pub use report::{ArtifactInfo, InputInfo, PipelineReport, StepTiming};
+pub use report::{ArtifactInfo, InputInfo, PipelineReport, StageReport, StageReports, StepTiming};
 pub use run::{Products, REPORT_NAME, StageOutput, run_pipeline};
 
 /// Media type of an artifact by file extension (`.json`, `.msh`, `.vtu`,

@@ -10,9 +10,9 @@
 //! Adding a stage: a [`StageName`] variant, an options field in
 //! [`PipelineParams`], an output field in [`Products`] if later stages need
 //! it, and one arm in [`run_stage`] calling the stage's function, which
-//! writes its artifact files into `out_dir` and returns a JSON summary.
+//! writes its artifact files into `out_dir` and returns its typed report
+//! (a [`StageReport`] variant, stored in [`StageReports`]).
 
-use std::collections::BTreeMap;
 use std::fs::File;
 use std::io::Write;
 use std::path::{Path, PathBuf};
@@ -29,18 +29,18 @@ use crate::progress::Progress;
 use super::error::PipelineError;
 use super::media_type_for;
 use super::params::{PipelineParams, StageName};
-use super::report::{ArtifactInfo, InputInfo, PipelineReport, StepTiming};
+use super::report::{ArtifactInfo, InputInfo, PipelineReport, StageReport, StageReports, StepTiming};
 
 /// Name of the report artifact.
 pub const REPORT_NAME: &str = "report.json";
 
-/// What one stage hands back: a JSON summary (numbers a user wants to see:
-/// patch counts, χ, singularities, energies) and the names of the files it
-/// wrote into `out_dir`.
-#[derive(Debug, Clone, Default)]
+/// What one stage hands back: its typed report (numbers a user wants to
+/// see: patch counts, χ, singularities, energies) and the names of the
+/// files it wrote into `out_dir`.
+#[derive(Debug, Clone)]
 pub struct StageOutput {
-    /// Summary shown in the job resource and `report.json`.
-    pub summary: serde_json::Value,
+    /// Report shown in the job resource and `report.json`.
+    pub report: StageReport,
     /// Files written into the output directory.
     pub artifacts: Vec<String>,
     /// Wall seconds spent writing those files (reported as the separate step
@@ -181,7 +181,7 @@ pub fn run_pipeline(
     let mut stages: Vec<StageName> = params.stages.clone();
     stages.sort();
     stages.dedup();
-    let mut summaries = BTreeMap::new();
+    let mut reports = StageReports::default();
     let mut artifacts = Vec::new();
     let share = 0.7 / stages.len().max(1) as f64;
     for (i, &stage) in stages.iter().enumerate() {
@@ -199,7 +199,7 @@ pub fn run_pipeline(
         for file in &out.artifacts {
             artifacts.push(artifact_info(out_dir, file)?);
         }
-        summaries.insert(name.to_string(), out.summary);
+        reports.insert(out.report);
     }
 
     progress.check()?;
@@ -217,7 +217,7 @@ pub fn run_pipeline(
         version: env!("CARGO_PKG_VERSION"),
         input: input_info,
         repair,
-        stages: summaries,
+        stages: reports,
         timings,
         artifacts: all,
         total_seconds: start.elapsed().as_secs_f64(),

@@ -21,6 +21,7 @@ use crate::progress::Progress;
 
 use super::error::PipelineError;
 use super::params::PipelineParams;
+use super::report::StageReport;
 use super::run::{Products, StageOutput};
 
 /// Write `out_dir/name` with `f` through a buffer and flush it.
@@ -70,10 +71,9 @@ pub fn run_atlas(
     );
     let artifacts = vec![msh?, vtu?, uv?];
     let write_seconds = write_start.elapsed().as_secs_f64();
-    let summary = serde_json::to_value(&atlas.report)
-        .map_err(|e| PipelineError::stage("atlas", FailureKind::StageFailed, e.to_string()))?;
+    let report = StageReport::Atlas(atlas.report);
     products.features = Some(atlas.features);
-    Ok(StageOutput { summary, artifacts, write_seconds })
+    Ok(StageOutput { report, artifacts, write_seconds })
 }
 
 /// Stage 2: the crossfield, aligned with boundary and feature edges
@@ -103,9 +103,8 @@ pub fn run_crossfield(
         write_artifact(out_dir, "crossfield.msh", |w| write_crossfield_msh_as(&field, surface, w, &params.output))?,
     ];
     let write_seconds = write_start.elapsed().as_secs_f64();
-    let summary = serde_json::to_value(&field.report)
-        .map_err(|e| PipelineError::stage("crossfield", FailureKind::StageFailed, e.to_string()))?;
-    Ok(StageOutput { summary, artifacts, write_seconds })
+    let report = StageReport::Crossfield(field.report);
+    Ok(StageOutput { report, artifacts, write_seconds })
 }
 
 /// Stage 3: the volume (the uploaded tetrahedra, or a mesh of the enclosed
@@ -133,7 +132,6 @@ pub fn run_frames(
         write_artifact(out_dir, "frames_singular.vtu", |w| write_singular_edges_vtu(&field, w))?,
     ];
     let write_seconds = write_start.elapsed().as_secs_f64();
-    let summary = serde_json::to_value(&field.report)
-        .map_err(|e| PipelineError::stage("frames", FailureKind::StageFailed, e.to_string()))?;
-    Ok(StageOutput { summary, artifacts, write_seconds })
+    let report = StageReport::Frames(field.report);
+    Ok(StageOutput { report, artifacts, write_seconds })
 }
