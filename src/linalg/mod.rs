@@ -12,6 +12,7 @@
 //! SPD systems, both with `Par::Seq` inside job workers.
 
 pub mod assembly;
+pub mod cg;
 pub mod error;
 pub mod krylov;
 pub mod ordering;
@@ -21,6 +22,7 @@ pub mod supernodal_lu;
 pub mod trisolve;
 
 pub use assembly::{Pattern, Triplets};
+pub use cg::{BlockRow, CgOptions, conjugate_gradients};
 pub use error::LinalgError;
 pub use krylov::{KrylovReport, bicgstab, bicgstab_block, sparse_matvec};
 pub use solvers::{CholeskySolver, LuSolver};
