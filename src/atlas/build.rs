@@ -418,9 +418,8 @@ fn done_patch(
 /// A patch whose first approximate map (symmetrized weights) exceeds the
 /// area distortion limit by this factor is split without finishing the
 /// solve. Distortion grows exponentially with a tube's length over its
-/// girth, so a rejected patch is usually far beyond the limit: on a
-/// 200k-triangle torus the 50k-triangle tube pieces measured 2·10⁵–8·10⁵
-/// against the default limit 10⁴, their halves 10³–2·10³.
+/// girth, so a rejected patch is usually far beyond the limit, its halves
+/// well below it (`docs/decisions.md`).
 const PREVIEW_DISTORTION_MARGIN: f64 = 10.0;
 
 /// Relative flatness under which a patch counts as planar: the tolerance

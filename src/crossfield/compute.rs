@@ -22,9 +22,8 @@
 //! regions, [`principal_curvature_field`]) a second candidate aligned with the
 //! principal directions is solved at the final ε, and the candidate with the
 //! lower GL energy is kept: the energy, not a heuristic, decides. On the
-//! 20k-triangle torus at ε = h the singularity-free candidate wins (65.07 vs
-//! 80.49); at ε = 2h the 12-vortex one still does (58.47 vs 62.77), which is
-//! why the default ε is h.
+//! torus the singularity-free candidate wins at ε = h but not yet at
+//! ε = 2h, which is why the default ε is h (`docs/decisions.md`).
 //!
 //! Multilevel continuation (`multilevel`, from `multilevel_min_faces`
 //! triangles). A stage at ε only needs a mesh whose edges are about ε long,
@@ -35,11 +34,10 @@
 //! itself solved the same way, recursively. The field is then transferred
 //! to the finer mesh by a conforming interpolation ([`super::transfer`]) and
 //! only the remaining stages (by default the last one) run there. Meanwhile
-//! the fine level's symbolic analysis (the nested-dissection ordering, ~10 s
-//! on 1M triangles) runs beside the coarse levels. On the 1M-triangle disk:
-//! levels of 10.6k, 62k and 1M triangles, 21 + 2 + 3 Newton iterations, and
-//! only 2 factorizations of the fine system (single level: 23); 173 → 32 s,
-//! same four vortices (r = 0.8515–0.8529 against 0.8505 and r* = 0.8501).
+//! the fine level's symbolic analysis (the nested-dissection ordering, the
+//! longest part of the setup on large meshes) runs beside the coarse levels.
+//! The fine system is then factored a few times instead of once per stage,
+//! with the same vortices (`docs/decisions.md`).
 
 use super::energy::EnergyParams;
 use super::frames::{C64, Discretization, check_orientation, face_frame};
@@ -98,8 +96,7 @@ pub fn validate_options(opts: &CrossfieldOptions) -> Result<(), CrossfieldError>
 /// The continuation schedule from `eps0` down to `eps`. An intermediate ε
 /// within a factor `1/√factor` of the final one is dropped: it would cost a
 /// stage (a factorization and a few Newton steps) to shrink the cores by
-/// less than the last step does anyway (disk:408 had stages at 0.002762 and
-/// 0.002752; a coarse level ending at 0.0348 had one at 0.0442).
+/// less than the last step does anyway (`docs/decisions.md`).
 pub fn epsilon_schedule(eps0: f64, eps: f64, factor: f64) -> Vec<f64> {
     let mut s = Vec::new();
     let mut e = eps0;
@@ -117,17 +114,14 @@ pub fn epsilon_schedule(eps0: f64, eps: f64, factor: f64) -> Vec<f64> {
 /// triangles per level.
 pub const COARSE_EPSILON_RATIO: f64 = 2.5;
 /// A coarse level of the input needs at least this many triangles (a
-/// smaller one costs more in setup than it saves). disk_3k asks for 191
-/// (480 with its boundary kept) for its first two stages: 0.13 → 0.064 s,
-/// same four vortices (r = 0.852); sphere_3k gets 210 and runs about 25 %
-/// faster, same antiprism.
+/// smaller one costs more in setup than it saves; a 3k-triangle input
+/// already gains from a level of about 200: `docs/decisions.md`).
 const MIN_COARSE_FACES: usize = 150;
 /// A coarse level of a coarse level needs at least this many. A tiny one
 /// starts its continuation above the eigenvalue-based ε₀ and leaves the
-/// vortex arrangement to the finer levels, where Newton steps are dear: on
-/// the 1M-triangle sphere a fourth level of 244 triangles took the input
-/// level from 4 to 8 iterations (42 → 66 s); on a 3k mesh those extra
-/// iterations are cheaper than the stage they replace.
+/// vortex arrangement to the finer levels, where Newton steps are dear
+/// (`docs/decisions.md`); on a small mesh those extra iterations are
+/// cheaper than the stage they replace.
 const MIN_NESTED_COARSE_FACES: usize = 2_000;
 
 /// One mesh of the multilevel continuation and its discretization.
@@ -480,8 +474,8 @@ fn solve_levels(
 /// The stages of a continuation down to `eps_c` on a coarsened copy of
 /// `level` ([`solve_coarse`]) when the level is large enough to have one,
 /// run beside this level's symbolic analysis, which only needs the
-/// pattern: on large meshes the nested-dissection ordering alone takes
-/// seconds. Returns the initial kind and the field transferred to `level`,
+/// pattern: on large meshes the nested-dissection ordering alone is the
+/// longest part of the setup. Returns the initial kind and the field transferred to `level`,
 /// or `None` when there is no coarse level; a coarse level that fails
 /// (other than by cancellation) is an accelerator lost, not an error: its
 /// records are removed from `report` and `None` returned.

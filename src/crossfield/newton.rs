@@ -16,12 +16,10 @@
 //! penalty is bounded by `M/ε²`, so μ ≈ 1 always succeeds); lower it ×10
 //! after a full step (unless the step's own curvature says the lower μ
 //! cannot factor, [`NewtonSolver::curvature_allows`]: one matrix-vector
-//! product instead of a failed factorization; disk_3k 56 → 52
-//! factorizations), raise it ×10 after a strongly cut one. (×100 steps
-//! overshoot: a stage whose Hessian needs μ ≈ 0.1 alternated between a
-//! failed factorization at 10⁻² and an over-damped step at 1, creeping for
-//! 20 iterations; the sphere_3k run went from 125 to 40 factorizations.) Starting low
-//! matters: vortex motion is a nearly flat (sometimes slightly negative)
+//! product instead of a failed factorization), raise it ×10 after a
+//! strongly cut one. (×100 steps overshoot: a stage whose Hessian needs
+//! μ ≈ 0.1 alternates between a failed factorization and an over-damped
+//! step; runs in `docs/decisions.md`.) Starting low matters: vortex motion is a nearly flat (sometimes slightly negative)
 //! direction, and a large μ would make vortices creep. Near a minimizer μ
 //! returns to 0: pure Newton, quadratic convergence. Clamping the indefinite
 //! term instead (the "modified" Hessian of [`super::energy`], kept only as a
@@ -39,7 +37,8 @@
 //! factorization of the stage, to the relative residual `√res` (inexact
 //! Newton, clamped to [10⁻⁶, 0.1]); negative curvature or
 //! [`KRYLOV_MAX_ITER`] iterations fall back to refactoring (with the μ
-//! raises above). disk:129: 68 → 30 factorizations for 50 CG iterations.
+//! raises above). This halves the factorizations of large systems
+//! (`docs/decisions.md`).
 //!
 //! Saddles. An intermediate stage stops at its (loose) tolerance only if
 //! the last factorization attempt did not fail: a failure means
@@ -54,8 +53,8 @@
 //! steps then move the pattern by about a cell per iteration (the residual
 //! stays near 10⁻⁴, the energy drops by ~10⁻⁷ relative per step) and the
 //! 10⁻⁸ tolerance is only reached once the rotation settles, after tens of
-//! iterations that change neither the vortex count nor the radii (disk:129:
-//! 61 iterations, r = 0.8504 before and after). The final stage therefore
+//! iterations that change neither the vortex count nor the radii
+//! (`docs/decisions.md`). The final stage therefore
 //! also stops, as converged, when over [`FINAL_STALL_WINDOW`] iterations the
 //! energy decreased by less than [`FINAL_STALL_DECREASE`] (relative) while
 //! the residual stayed below [`FINAL_STALL_RESIDUAL`] (a plateau, not a
@@ -83,43 +82,37 @@ const STALL_WINDOW: usize = 5;
 const STALL_DECREASE: f64 = 1e-7;
 /// Final stage: iterations over which the energy must decrease ...
 const FINAL_STALL_WINDOW: usize = 5;
-/// ... by at least this relative amount while ... (3·10⁻⁵: on disk_3k the
-/// iterations this cuts, 36 → 26, only turned the four-vortex pattern by
-/// 1.6° with the radii unchanged at 0.8514–0.8517, for 2.5·10⁻⁵ of energy;
-/// 10⁻⁵ before)
+/// ... by at least this relative amount while ... (the iterations a
+/// smaller value adds only turn the vortex pattern, radii unchanged:
+/// `docs/decisions.md`)
 const FINAL_STALL_DECREASE: f64 = 3e-5;
 /// ... the scaled residual stays below this, or the stage stops (plateau).
 const FINAL_STALL_RESIDUAL: f64 = 1e-3;
 /// Newton systems from this many real unknowns on reuse the factorization
-/// as a CG preconditioner. Below, refactoring costs only a few solves:
-/// torus_20k (62k unknowns) took 4.7 s with CG (14 factorizations, 148 CG
-/// iterations) against 2.7 s without (40 factorizations); disk:129 (300k)
-/// 19 → 16 s.
+/// as a CG preconditioner. Below, refactoring costs only a few solves, and
+/// CG was slower (`docs/decisions.md`).
 pub const KRYLOV_MIN_DOFS: usize = 200_000;
 /// CG iterations before giving up and refactoring. A solve with the factor
-/// costs about a seventh of a refactorization at 300k unknowns (30 vs
-/// 190–290 ms) and a tenth at 3M (0.37 vs 3.7–4.8 s), and an attempt that
-/// runs out is paid on top of the refactorization: 10 → 5 took disk:129
-/// from 13.1 to 11.4–11.9 s (18 → 23 factorizations, 147 → 103 CG
-/// iterations counting failed attempts) and disk:408 from 194 to 179 s.
+/// costs a seventh to a tenth of a refactorization, and an attempt that
+/// runs out is paid on top of the refactorization, so few iterations pay
+/// best (`docs/decisions.md`).
 const KRYLOV_MAX_ITER: usize = 5;
 /// From this many real unknowns on, the factorization is ordered by METIS
-/// nested dissection on the 2×2 blocks instead of AMD: disk:129 (300k
-/// unknowns) nnz(L) 19.4M → 13.6M, symbolic 0.2 → 0.7 s; disk:408 (3M)
-/// nnz(L) 256M → 170M, numeric 11.0 → 8.4 s, symbolic 4.4 → 10.5 s.
+/// nested dissection on the 2×2 blocks instead of AMD: a third less fill
+/// and faster numeric factorizations for a slower symbolic analysis
+/// (`docs/decisions.md`).
 const NESTED_DISSECTION_MIN_DOFS: usize = 200_000;
 /// Final stage: Newton steps over which the singular vertices must stay the
 /// same (with the residual below [`FINAL_STALL_RESIDUAL`]) for the stage to
 /// stop as settled. The steps after that move the vortex zeros within their
-/// stars, by a fraction of a cell: disk:129 (h = 0.0087) has r = 0.8521
-/// after 2 steps, 0.8513 after 4 and 0.8503 after 9 (r* = 0.8501).
+/// stars, by a fraction of a cell (`docs/decisions.md`).
 const SETTLE_STEPS: usize = 2;
 /// Maximum step halvings.
 const MAX_HALVINGS: usize = 40;
 /// First non-zero Levenberg–Marquardt parameter (units of 1/ε²). 10⁻⁴
-/// rather than 10⁻⁸: a Hessian that fails at μ = 0 needed μ ≈ 10⁻¹ on
-/// sphere_3k, and the raises from 10⁻⁸ cost four more failed factorizations
-/// (factorizations 33 → 29 there, torus_20k 15 → 13, same singularities).
+/// rather than 10⁻⁸: a Hessian that fails at μ = 0 needs μ ≈ 10⁻¹, and
+/// each raise from further below is a failed factorization
+/// (`docs/decisions.md`).
 const MU_FIRST: f64 = 1e-4;
 /// Factor by which μ is raised after a failed factorization, and lowered after a full step.
 const MU_STEP: f64 = 10.0;
@@ -211,8 +204,8 @@ struct StageState {
     /// Whether the last factorization (of this stage) may precondition CG.
     precond_ok: bool,
     /// Whether the last CG attempt failed: the next step refactors
-    /// directly (in the final stage, where each step moves the vortex
-    /// cores, CG failed on every step of disk:408 and cost 5 solves each).
+    /// directly (in the final stage each step moves the vortex cores, and a
+    /// failed attempt is likely to fail again).
     cg_failed: bool,
     /// Whether the last factorization attempts found `H + μM/ε²` indefinite.
     indefinite: bool,
@@ -293,9 +286,7 @@ impl StageState {
     /// point where the last factorization attempt showed negative
     /// curvature: a small residual there is a saddle (the symmetric vortex
     /// cluster before it splits), not a minimizer, and the next stage would
-    /// have to split it with smaller, slower cores (disk:408 with tolerance
-    /// 10⁻³ stopped at ε = 0.18 with the residual rising from 9.7·10⁻⁴ and
-    /// split at ε = 0.044 in 17 iterations).
+    /// have to split it with smaller, slower cores (`docs/decisions.md`).
     fn ends(&self, spec: &StageSpec, it: usize, res: f64, stalled: bool) -> bool {
         let at_saddle = spec.stop_on_stall && self.indefinite;
         (res <= spec.tol && !at_saddle) || !res.is_finite() || it == spec.max_iter || stalled

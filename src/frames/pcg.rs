@@ -3,9 +3,9 @@
 //! `αM + τK (+ P)` of [`super::mbo`].
 //!
 //! Why: a sparse Cholesky factorization of a 3D P1 matrix grows like `n²`
-//! (measured with faer on the ball at 1M tets, 179k vertices: 12.7 s per
-//! numeric factorization with a METIS nested-dissection ordering, 132M
-//! nonzeros in `L`; AMD is worse), and MBO needs one per time step. For
+//! (seconds per numeric factorization on a million tetrahedra even with a
+//! nested-dissection ordering: `docs/decisions.md`), and MBO needs one per
+//! time step. For
 //! `M + τK` with `τ` a few squared edge lengths the condition number is
 //! bounded independently of `n` (`1 + O(τ/h²)`), so conjugate gradients
 //! converge in a fixed number of iterations, each one sparse product; the
