@@ -13,14 +13,15 @@
 use super::curvature::{Curvature, principal_curvatures};
 use super::error::AtlasError;
 use super::features::{FeatureCurve, Features, detect_features, edge_chains, model_faces};
-use super::mvc::{MvcSolver, mean_value_parameterization, mean_value_parameterization_unless};
+use super::mvc::{MvcSolver, PatchParameterization, mean_value_parameterization, mean_value_parameterization_unless};
 use super::options::AtlasOptions;
 use super::partition::{parts_for_distortion, parts_for_size, split_patch, split_patch_into};
 use super::patch::PatchMesh;
 use super::refine::bisect_inner_edges;
 use super::report::{AtlasReport, PatchReport, SplitCounts, SplitReason};
-use super::verify::{area_distortion, check_map, min_and_median, sigma_ratios};
+use super::verify::{MapCheck, area_distortion, check_map, min_and_median, sigma_ratios};
 use crate::geom::Vec2;
+use crate::mesh::boundary::BoundaryLoop;
 use crate::mesh::summary::topology_summary;
 use crate::mesh::{EdgeId, FaceId, Topology, TriMesh, VertexId};
 use crate::progress::Progress;
@@ -164,6 +165,7 @@ fn parameterize_patches(
     opts: &AtlasOptions,
     progress: &Progress,
 ) -> Result<(Vec<DonePatch>, SplitCounts), AtlasError> {
+    let ctx = PatchContext { mesh, topo, manifold_input, opts, progress };
     let mut pending: Vec<(Vec<FaceId>, usize)> = faces_of_model_face.into_iter().map(|f| (f, 0)).collect();
     let mut done: Vec<DonePatch> = Vec::new();
     let mut splits = SplitCounts::default();
@@ -171,10 +173,8 @@ fn parameterize_patches(
     let mut n_done = 0usize;
     while !pending.is_empty() {
         progress.check()?;
-        let outcomes: Vec<Result<Outcome, AtlasError>> = pending
-            .into_par_iter()
-            .map(|(faces, depth)| process_patch(mesh, topo, faces, depth, manifold_input, opts, progress))
-            .collect();
+        let outcomes: Vec<Result<Outcome, AtlasError>> =
+            pending.into_par_iter().map(|(faces, depth)| process_patch(&ctx, faces, depth)).collect();
         pending = Vec::new();
         for o in outcomes {
             match o? {
@@ -193,48 +193,138 @@ fn parameterize_patches(
     Ok((done, splits))
 }
 
-/// Check, refine, parameterize and verify one patch, or split it.
-fn process_patch(
-    mesh: &TriMesh,
-    topo: &Topology,
-    faces: Vec<FaceId>,
-    depth: usize,
+/// What every patch of one atlas build shares.
+struct PatchContext<'a> {
+    mesh: &'a TriMesh,
+    topo: &'a Topology,
+    /// No non-manifold vertex in the input: a patch can only be pinched at
+    /// its boundary ([`PatchMesh::defect_of_manifold_piece`]).
     manifold_input: bool,
-    opts: &AtlasOptions,
-    progress: &Progress,
-) -> Result<Outcome, AtlasError> {
-    progress.check()?;
-    let is_whole = faces.len() == mesh.n_faces() && faces.iter().enumerate().all(|(i, f)| f.idx() == i);
-    let patch =
-        is_whole.then(|| PatchMesh::whole(mesh, topo)).flatten().unwrap_or_else(|| PatchMesh::extract(mesh, &faces));
-    let defect = if manifold_input { patch.defect_of_manifold_piece() } else { patch.defect() };
-    if defect.is_some() || patch.n_faces() > opts.max_patch_triangles {
-        let pieces = split_patch_into(&patch, parts_for_size(patch.n_faces(), opts.max_patch_triangles))?;
-        return Ok(Outcome::Split { pieces, reason: defect.map_or(SplitReason::Size, SplitReason::Topology), depth });
+    opts: &'a AtlasOptions,
+    progress: &'a Progress,
+}
+
+/// A coarse patch refined by bisection before its map is computed.
+struct Refined {
+    /// The refined mesh (no global numbering: a patch of its own).
+    patch: PatchMesh,
+    /// Patch triangle containing each refined triangle.
+    source_face: Vec<u32>,
+    n_bisections: usize,
+}
+
+/// A one-to-one mean value map of a patch and its checks.
+struct VerifiedMap {
+    param: PatchParameterization,
+    check: MapCheck,
+    /// Area distortion of the map ([`area_distortion`]).
+    distortion: f64,
+    /// Boundary loops of the mapped mesh.
+    n_loops: usize,
+}
+
+/// What [`mean_value_map`] found.
+enum MapAttempt {
+    /// A map that passed [`check_map`], and the check.
+    Valid(PatchParameterization, MapCheck),
+    /// Abandoned early: the first approximation's area distortion (this
+    /// value) is far beyond the limit.
+    Hopeless(f64),
+    /// Not one-to-one, even by the pivoting LU.
+    Invalid(MapCheck),
+}
+
+/// Check, refine, parameterize and verify one patch (the input triangles
+/// `faces`, split `depth` times for its map so far), or split it: thesis
+/// ch. 2 §4, a patch must be a disk with holes whose mean value map (2.4)
+/// is one-to-one (§3) and not too compressed for a mesh generator.
+fn process_patch(ctx: &PatchContext, faces: Vec<FaceId>, depth: usize) -> Result<Outcome, AtlasError> {
+    ctx.progress.check()?;
+    let opts = ctx.opts;
+    let patch = extract_patch(ctx, &faces);
+    if let Some(split) = split_unless_small_disk(ctx, &patch, depth)? {
+        return Ok(split);
     }
     let start = Instant::now();
-    let n_original = patch.mesh.n_vertices();
-    let interior_fraction = patch.n_interior_vertices() as f64 / n_original as f64;
-    // The refined copy when the patch is too coarse; otherwise the patch
-    // itself is parameterized (no copy: a patch is ~50 bytes per triangle).
-    let refined = (interior_fraction < opts.refine_below_interior_fraction && !is_planar(&patch.mesh)).then(|| {
-        let target = mean_boundary_edge_length(&patch);
-        let r =
-            bisect_inner_edges(&patch.mesh, target, opts.refine_max_passes, refined_size_cap(patch.n_faces(), opts));
-        let mesh = PatchMesh {
-            global_vertices: Vec::new(),
-            global_faces: Vec::new(),
-            topo: Topology::new(&r.mesh),
-            mesh: r.mesh,
-        };
-        (mesh, r.source_face, r.n_bisections)
-    });
-    let work = refined.as_ref().map_or(&patch, |r| &r.0);
-    let n_bisections = refined.as_ref().map_or(0, |r| r.2);
+    let refined = refine_if_coarse(&patch, opts);
+    let work = refined.as_ref().map_or(&patch, |r| &r.patch);
     let loops = work.loops_longest_first();
     let may_split = depth < opts.max_split_depth && patch.n_faces() >= 2;
-    // A first approximation compressed far beyond the limit will be split
-    // anyway: do not solve it to the end.
+    let (param, check) = match mean_value_map(work, &loops, may_split, opts)? {
+        MapAttempt::Valid(param, check) => (param, check),
+        MapAttempt::Hopeless(preview_distortion) => {
+            let k = parts_for_distortion(preview_distortion, opts.max_area_distortion);
+            let pieces = split_patch_into(&patch, k)?;
+            return Ok(Outcome::Split { pieces, reason: SplitReason::Distortion, depth: depth + 1 });
+        }
+        MapAttempt::Invalid(check) => return unmappable_patch(&patch, &check, depth, opts),
+    };
+    let distortion = area_distortion(work, &param.uv);
+    if distortion > opts.max_area_distortion && may_split {
+        // One-to-one but too compressed somewhere for a mesh generator: split.
+        let pieces = split_patch(&patch)?;
+        return Ok(Outcome::Split { pieces, reason: SplitReason::Distortion, depth: depth + 1 });
+    }
+    let map = VerifiedMap { param, check, distortion, n_loops: loops.len() };
+    Ok(Outcome::Done(Box::new(done_patch(patch, refined, faces, map, depth, start))))
+}
+
+/// The patch of the input triangles `faces`: the input itself (its
+/// topology reused) when `faces` is every triangle in order, else an
+/// extracted copy.
+fn extract_patch(ctx: &PatchContext, faces: &[FaceId]) -> PatchMesh {
+    let is_whole = faces.len() == ctx.mesh.n_faces() && faces.iter().enumerate().all(|(i, f)| f.idx() == i);
+    is_whole
+        .then(|| PatchMesh::whole(ctx.mesh, ctx.topo))
+        .flatten()
+        .unwrap_or_else(|| PatchMesh::extract(ctx.mesh, faces))
+}
+
+/// The split of a patch that is not a disk with holes (DESIGN stage 1
+/// step 3: connected, orientable, genus 0, a boundary) or has more than
+/// `max_patch_triangles`: one k-way cut into enough pieces for the cap
+/// (at least two), at the same `depth`. `None` for a patch to map.
+fn split_unless_small_disk(ctx: &PatchContext, patch: &PatchMesh, depth: usize) -> Result<Option<Outcome>, AtlasError> {
+    let max = ctx.opts.max_patch_triangles;
+    let defect = if ctx.manifold_input { patch.defect_of_manifold_piece() } else { patch.defect() };
+    if defect.is_none() && patch.n_faces() <= max {
+        return Ok(None);
+    }
+    let pieces = split_patch_into(patch, parts_for_size(patch.n_faces(), max))?;
+    Ok(Some(Outcome::Split { pieces, reason: defect.map_or(SplitReason::Size, SplitReason::Topology), depth }))
+}
+
+/// The refined copy of a coarse patch (too few interior vertices for a
+/// smooth map, and not planar): interior edges bisected towards the mean
+/// boundary edge length, geometry unchanged (thesis ch. 2 §5.1). `None`
+/// when the patch is mapped as it is (no copy: a patch is ~50 bytes per
+/// triangle).
+fn refine_if_coarse(patch: &PatchMesh, opts: &AtlasOptions) -> Option<Refined> {
+    let interior_fraction = patch.n_interior_vertices() as f64 / patch.mesh.n_vertices() as f64;
+    let coarse = interior_fraction < opts.refine_below_interior_fraction && !is_planar(&patch.mesh);
+    if !coarse {
+        return None;
+    }
+    let target = mean_boundary_edge_length(patch);
+    let r = bisect_inner_edges(&patch.mesh, target, opts.refine_max_passes, refined_size_cap(patch.n_faces(), opts));
+    let refined =
+        PatchMesh { global_vertices: Vec::new(), global_faces: Vec::new(), topo: Topology::new(&r.mesh), mesh: r.mesh };
+    Some(Refined { patch: refined, source_face: r.source_face, n_bisections: r.n_bisections })
+}
+
+/// The mean value map (2.4 with 2.7) of `work` with its boundary `loops`,
+/// checked for injectivity ([`check_map`]). When the patch may still be
+/// split, a first approximation compressed far beyond the distortion limit
+/// is abandoned (it would be split anyway: do not solve it to the end).
+/// A map that fails the check is solved again by the pivoting LU: a
+/// solution to 10⁻¹⁰ may still miss a tiny triangle that a pivoting direct
+/// solve gets right.
+fn mean_value_map(
+    work: &PatchMesh,
+    loops: &[BoundaryLoop],
+    may_split: bool,
+    opts: &AtlasOptions,
+) -> Result<MapAttempt, AtlasError> {
     let preview_distortion = std::cell::Cell::new(0.0);
     let hopeless = |uv: &[Vec2]| {
         may_split && {
@@ -242,87 +332,94 @@ fn process_patch(
             preview_distortion.get() > PREVIEW_DISTORTION_MARGIN * opts.max_area_distortion
         }
     };
-    let first = mean_value_parameterization_unless(work, &loops, opts.max_hole_fill_vertices, opts.solver, &hopeless)?;
+    let first = mean_value_parameterization_unless(work, loops, opts.max_hole_fill_vertices, opts.solver, &hopeless)?;
     let Some(mut param) = first else {
-        let k = parts_for_distortion(preview_distortion.get(), opts.max_area_distortion);
-        let pieces = split_patch_into(&patch, k)?;
-        return Ok(Outcome::Split { pieces, reason: SplitReason::Distortion, depth: depth + 1 });
+        return Ok(MapAttempt::Hopeless(preview_distortion.get()));
     };
     let mut check = check_map(work, &param.uv, opts.min_relative_uv_area);
     if !check.is_valid() && param.solver != MvcSolver::PivotingLu {
-        // A solution to 10⁻¹⁰ may still miss a tiny triangle that a pivoting
-        // direct solve gets right.
-        param = mean_value_parameterization(work, &loops, opts.max_hole_fill_vertices, MvcSolver::PivotingLu)?;
+        param = mean_value_parameterization(work, loops, opts.max_hole_fill_vertices, MvcSolver::PivotingLu)?;
         check = check_map(work, &param.uv, opts.min_relative_uv_area);
     }
-    if !check.is_valid() {
-        if depth >= opts.max_split_depth || patch.n_faces() < 2 {
-            let c = patch.mesh.positions.iter().sum::<crate::geom::Vec3>() / n_original as f64;
-            return Err(AtlasError::NoValidMap {
-                n_faces: patch.n_faces(),
-                x: c.x,
-                y: c.y,
-                z: c.z,
-                attempts: depth,
-                reason: format!(
-                    "{} flipped and {} near-zero-area parametric triangles (min relative area {:.3e})",
-                    check.n_flipped, check.n_tiny, check.min_relative_area
-                ),
-            });
-        }
-        let pieces = split_patch(&patch)?;
-        return Ok(Outcome::Split { pieces, reason: SplitReason::MapFailed, depth: depth + 1 });
+    Ok(if check.is_valid() { MapAttempt::Valid(param, check) } else { MapAttempt::Invalid(check) })
+}
+
+/// A patch without a one-to-one map: split in two (`depth + 1`), or, when
+/// it may not be split any more, [`AtlasError::NoValidMap`] naming where it
+/// is and what failed, so a broken map is never returned.
+fn unmappable_patch(
+    patch: &PatchMesh,
+    check: &MapCheck,
+    depth: usize,
+    opts: &AtlasOptions,
+) -> Result<Outcome, AtlasError> {
+    if depth >= opts.max_split_depth || patch.n_faces() < 2 {
+        let c = patch.mesh.positions.iter().sum::<crate::geom::Vec3>() / patch.mesh.n_vertices() as f64;
+        return Err(AtlasError::NoValidMap {
+            n_faces: patch.n_faces(),
+            x: c.x,
+            y: c.y,
+            z: c.z,
+            attempts: depth,
+            reason: format!(
+                "{} flipped and {} near-zero-area parametric triangles (min relative area {:.3e})",
+                check.n_flipped, check.n_tiny, check.min_relative_area
+            ),
+        });
     }
-    let distortion = area_distortion(work, &param.uv);
-    if distortion > opts.max_area_distortion && may_split {
-        // One-to-one but too compressed somewhere for a mesh generator: split.
-        let pieces = split_patch(&patch)?;
-        return Ok(Outcome::Split { pieces, reason: SplitReason::Distortion, depth: depth + 1 });
-    }
-    let sigma = sigma_ratios(work, &param.uv);
+    let pieces = split_patch(patch)?;
+    Ok(Outcome::Split { pieces, reason: SplitReason::MapFailed, depth: depth + 1 })
+}
+
+/// The finished patch: local mesh (refined or not), `(u, v)`, the
+/// conformity indicator σ2/σ1 per triangle (thesis ch. 2 §2) and the
+/// summary numbers, `start` being when its mapping began.
+fn done_patch(
+    patch: PatchMesh,
+    refined: Option<Refined>,
+    faces: Vec<FaceId>,
+    map: VerifiedMap,
+    depth: usize,
+    start: Instant,
+) -> DonePatch {
+    let work = refined.as_ref().map_or(&patch, |r| &r.patch);
+    let n_original = patch.mesh.n_vertices();
+    let sigma = sigma_ratios(work, &map.param.uv);
     let (sigma_min, sigma_median) = min_and_median(&sigma);
     let input_vertex =
         (0..work.mesh.n_vertices()).map(|v| (v < n_original).then(|| patch.global_vertices[v])).collect();
+    let param = &map.param;
     let report = PatchReport {
         id: 0,
         n_input_triangles: faces.len(),
         n_triangles: work.n_faces(),
         n_vertices: work.mesh.n_vertices(),
-        n_boundary_loops: loops.len(),
+        n_boundary_loops: map.n_loops,
         n_holes_filled: param.n_holes_filled,
         n_holes_neumann: param.n_holes_neumann,
-        n_bisections,
+        n_bisections: refined.as_ref().map_or(0, |r| r.n_bisections),
         sigma_ratio_min: sigma_min,
         sigma_ratio_median: sigma_median,
         sigma_ratio_jump_median: sigma_jump_median(work, &sigma),
-        min_relative_uv_area: check.min_relative_area,
-        area_distortion: distortion,
+        min_relative_uv_area: map.check.min_relative_area,
+        area_distortion: map.distortion,
         n_map_splits: depth,
         solver: param.solver,
         krylov_iterations: param.iterations,
         solve_seconds: start.elapsed().as_secs_f64(),
     };
     let (mesh, source_local_face) = match refined {
-        Some((r, source, _)) => (r.mesh, source),
+        Some(r) => (r.patch.mesh, r.source_face),
         None => (patch.mesh, (0..faces.len() as u32).collect()),
     };
-    Ok(Outcome::Done(Box::new(DonePatch {
-        input_faces: faces,
-        input_vertex,
-        mesh,
-        source_local_face,
-        uv: param.uv,
-        sigma,
-        report,
-    })))
+    DonePatch { input_faces: faces, input_vertex, mesh, source_local_face, uv: map.param.uv, sigma, report }
 }
 
 /// A patch whose first approximate map (symmetrized weights) exceeds the
 /// area distortion limit by this factor is split without finishing the
 /// solve. Distortion grows exponentially with a tube's length over its
-/// girth, so a rejected patch is usually far beyond the limit: on a
-/// 200k-triangle torus the 50k-triangle tube pieces measured 2·10⁵–8·10⁵
-/// against the default limit 10⁴, their halves 10³–2·10³.
+/// girth, so a rejected patch is usually far beyond the limit, its halves
+/// well below it (`docs/decisions.md`).
 const PREVIEW_DISTORTION_MARGIN: f64 = 10.0;
 
 /// Relative flatness under which a patch counts as planar: the tolerance

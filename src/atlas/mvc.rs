@@ -23,14 +23,12 @@
 //! graph) in single precision, and one step of iterative refinement in
 //! double precision (at most two on the corpus; BiCGSTAB takes over should
 //! refinement stall) brings u and v to the relative residual 10⁻¹⁰.
-//! Measured on the two 100k-triangle halves of the 200k sphere (50k
-//! unknowns each): one BiCGSTAB iteration against 8–9 with the Cholesky
-//! factor of the symmetrized matrix `S` (weights `(λ_ij + λ_ji) / 2`), the
-//! other choice, patch phase 0.44 s against 0.70 s, peak 159 MB against 192 MB (the
+//! The other choice, BiCGSTAB preconditioned by the Cholesky factor of the
+//! symmetrized matrix `S` (weights `(λ_ij + λ_ji) / 2`), needs several
+//! iterations where this needs one, and more time and memory (the
 //! single-precision `L` and `U` together are the size of `S`'s factor in
-//! double precision); the 1M sphere's 16 patch solves 1.7 s against 2.6 s
-//! in total with an `f64` factor. faer's LU with partial pivoting is the
-//! fallback for degenerate patches (4× slower, DEPENDENCIES.md).
+//! double precision); faer's LU with partial pivoting, slower still, is the
+//! fallback for degenerate patches (runs in `docs/decisions.md`).
 
 use super::error::AtlasError;
 use super::patch::PatchMesh;

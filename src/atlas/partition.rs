@@ -5,8 +5,8 @@
 //! (valence-2) edge of the patch. `METIS_PartGraphRecursive` with two parts
 //! gives a balanced cut of (near-)minimal length; each part is then split
 //! into its edge-connected components, since a bisection need not keep the
-//! parts connected. Measured in DEPENDENCIES.md: 45 ms for a 100k-triangle
-//! dual graph, the best cut among the partitioners tried. A patch far above
+//! parts connected. METIS gave the best cut among the partitioners tried,
+//! in tens of milliseconds (`docs/decisions.md`). A patch far above
 //! the size cap is cut once with `METIS_PartGraphKway` into as many parts
 //! as needed ([`parts_for_size`]) rather than bisected level by level.
 
@@ -57,10 +57,9 @@ pub fn partition_dual_graph(patch: &PatchMesh, k: usize) -> Result<Vec<i32>, Atl
 
 /// How many parts a patch of `n` triangles is cut into for the size cap
 /// `cap`: two (a bisection) when halves fit, else enough k-way parts that
-/// METIS's 3 % imbalance stays under the cap. One k-way cut of a
-/// 1M-triangle sphere into 12 parts replaces four levels of bisection
-/// (15 METIS calls, which the METIS lock serializes, and the extraction and
-/// topology of every intermediate piece).
+/// METIS's 3 % imbalance stays under the cap. One k-way cut replaces
+/// several levels of bisection (METIS calls, which the METIS lock
+/// serializes, and the extraction and topology of every intermediate piece).
 pub fn parts_for_size(n: usize, cap: usize) -> usize {
     let cap = cap.max(1);
     if n.div_ceil(cap) <= 2 {
@@ -77,9 +76,8 @@ pub fn parts_for_size(n: usize, cap: usize) -> usize {
 /// that each part's falls under `limit`. The distortion of a tube (a cut
 /// torus, a long protrusion) grows exponentially with its length over its
 /// girth, so `k` pieces of it have about `d^(1/k)`: `k = ⌈ln d / ln limit⌉`
-/// (at least 2, at most [`MAX_DISTORTION_PARTS`]). On the 200k torus the
-/// 100k-triangle half tubes went to quarters, then eighths, each level
-/// paying a factorization per piece before this.
+/// (at least 2, at most [`MAX_DISTORTION_PARTS`]), instead of bisecting
+/// level by level, each level paying a factorization per piece.
 pub fn parts_for_distortion(d: f64, limit: f64) -> usize {
     if !(d > limit && limit > 1.0) {
         return 2;

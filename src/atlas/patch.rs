@@ -48,9 +48,8 @@ pub enum PatchDefect {
 impl PatchMesh {
     /// The whole of `mesh` as one patch, reusing its topology `topo` (a
     /// copy instead of a renumbering and a new topology: the first patch of
-    /// a closed surface without features is the whole input, 200k
-    /// triangles on the benchmark sphere, and this runs before anything can
-    /// run in parallel). `None` when some vertex has no triangle: then local
+    /// a closed surface without features is the whole input, and this runs
+    /// before anything can run in parallel). `None` when some vertex has no triangle: then local
     /// and global numberings differ and [`PatchMesh::extract`] is needed.
     pub fn whole(mesh: &TriMesh, topo: &Topology) -> Option<Self> {
         let n_v = mesh.n_vertices();
@@ -131,8 +130,8 @@ impl PatchMesh {
     /// non-manifold vertex. A vertex without boundary edges in the piece
     /// has all the triangles of its (single) fan in the piece, so only
     /// boundary vertices can be pinched and only they are checked: the full
-    /// check visits every fan, and repeated at every split level it was
-    /// 7.7 % of a 1M-triangle atlas.
+    /// check visits every fan, and repeated at every split level it was a
+    /// visible part of a large atlas (`docs/decisions.md`).
     pub fn defect_of_manifold_piece(&self) -> Option<PatchDefect> {
         self.defect_with(true)
     }

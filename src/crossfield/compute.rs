@@ -22,9 +22,8 @@
 //! regions, [`principal_curvature_field`]) a second candidate aligned with the
 //! principal directions is solved at the final ε, and the candidate with the
 //! lower GL energy is kept: the energy, not a heuristic, decides. On the
-//! 20k-triangle torus at ε = h the singularity-free candidate wins (65.07 vs
-//! 80.49); at ε = 2h the 12-vortex one still does (58.47 vs 62.77), which is
-//! why the default ε is h.
+//! torus the singularity-free candidate wins at ε = h but not yet at
+//! ε = 2h, which is why the default ε is h (`docs/decisions.md`).
 //!
 //! Multilevel continuation (`multilevel`, from `multilevel_min_faces`
 //! triangles). A stage at ε only needs a mesh whose edges are about ε long,
@@ -35,20 +34,21 @@
 //! itself solved the same way, recursively. The field is then transferred
 //! to the finer mesh by a conforming interpolation ([`super::transfer`]) and
 //! only the remaining stages (by default the last one) run there. Meanwhile
-//! the fine level's symbolic analysis (the nested-dissection ordering, ~10 s
-//! on 1M triangles) runs beside the coarse levels. On the 1M-triangle disk:
-//! levels of 10.6k, 62k and 1M triangles, 21 + 2 + 3 Newton iterations, and
-//! only 2 factorizations of the fine system (single level: 23); 173 → 32 s,
-//! same four vortices (r = 0.8515–0.8529 against 0.8505 and r* = 0.8501).
+//! the fine level's symbolic analysis (the nested-dissection ordering, the
+//! longest part of the setup on large meshes) runs beside the coarse levels.
+//! The fine system is then factored a few times instead of once per stage,
+//! with the same vortices (`docs/decisions.md`).
 
 use super::energy::EnergyParams;
 use super::frames::{C64, Discretization, check_orientation, face_frame};
 use super::initial::{InitialKind, initial_field, principal_curvature_field};
-use super::newton::NewtonSolver;
+use super::newton::{NewtonSolver, StageSpec};
 use super::singularities::vertex_indices;
 use super::system::NewtonSystem;
 use super::transfer::transfer_to_fine;
-use super::{BoundaryCondition, Crossfield, CrossfieldError, CrossfieldOptions, CrossfieldReport, LevelReport};
+use super::{
+    BoundaryCondition, Crossfield, CrossfieldError, CrossfieldOptions, CrossfieldReport, LevelReport, NewtonRecord,
+};
 use crate::geom::Vec3;
 use crate::mesh::decimate::decimate;
 use crate::mesh::summary::topology_summary;
@@ -96,8 +96,7 @@ pub fn validate_options(opts: &CrossfieldOptions) -> Result<(), CrossfieldError>
 /// The continuation schedule from `eps0` down to `eps`. An intermediate ε
 /// within a factor `1/√factor` of the final one is dropped: it would cost a
 /// stage (a factorization and a few Newton steps) to shrink the cores by
-/// less than the last step does anyway (disk:408 had stages at 0.002762 and
-/// 0.002752; a coarse level ending at 0.0348 had one at 0.0442).
+/// less than the last step does anyway (`docs/decisions.md`).
 pub fn epsilon_schedule(eps0: f64, eps: f64, factor: f64) -> Vec<f64> {
     let mut s = Vec::new();
     let mut e = eps0;
@@ -115,17 +114,14 @@ pub fn epsilon_schedule(eps0: f64, eps: f64, factor: f64) -> Vec<f64> {
 /// triangles per level.
 pub const COARSE_EPSILON_RATIO: f64 = 2.5;
 /// A coarse level of the input needs at least this many triangles (a
-/// smaller one costs more in setup than it saves). disk_3k asks for 191
-/// (480 with its boundary kept) for its first two stages: 0.13 → 0.064 s,
-/// same four vortices (r = 0.852); sphere_3k gets 210 and runs about 25 %
-/// faster, same antiprism.
+/// smaller one costs more in setup than it saves; a 3k-triangle input
+/// already gains from a level of about 200: `docs/decisions.md`).
 const MIN_COARSE_FACES: usize = 150;
 /// A coarse level of a coarse level needs at least this many. A tiny one
 /// starts its continuation above the eigenvalue-based ε₀ and leaves the
-/// vortex arrangement to the finer levels, where Newton steps are dear: on
-/// the 1M-triangle sphere a fourth level of 244 triangles took the input
-/// level from 4 to 8 iterations (42 → 66 s); on a 3k mesh those extra
-/// iterations are cheaper than the stage they replace.
+/// vortex arrangement to the finer levels, where Newton steps are dear
+/// (`docs/decisions.md`); on a small mesh those extra iterations are
+/// cheaper than the stage they replace.
 const MIN_NESTED_COARSE_FACES: usize = 2_000;
 
 /// One mesh of the multilevel continuation and its discretization.
@@ -256,14 +252,7 @@ pub fn compute_crossfield(
     progress: &Progress,
 ) -> Result<Crossfield, CrossfieldError> {
     let start = Instant::now();
-    validate_options(opts)?;
-    if mesh.n_faces() == 0 {
-        return Err(CrossfieldError::EmptyMesh);
-    }
-    if aligned_edges.len() != topo.n_edges() {
-        return Err(CrossfieldError::AlignedEdgesLength { expected: topo.n_edges(), got: aligned_edges.len() });
-    }
-    let n = opts.symmetry;
+    check_inputs(mesh, topo, aligned_edges, opts)?;
     let level = Level::new(mesh, topo, aligned_edges.to_vec(), 0, opts)?;
     let h = mesh.mean_edge_length();
     let eps = opts.epsilon.unwrap_or(opts.epsilon_per_edge_length * h);
@@ -271,7 +260,7 @@ pub fn compute_crossfield(
 
     let mut f = vec![C64::new(1.0, 0.0); topo.n_edges()];
     let mut report = CrossfieldReport {
-        symmetry: n,
+        symmetry: opts.symmetry,
         n_edges: topo.n_edges(),
         n_fixed_edges: level.fixed.iter().filter(|&&x| x).count(),
         n_aligned_edges: aligned_edges.iter().filter(|&&x| x).count(),
@@ -281,55 +270,134 @@ pub fn compute_crossfield(
     };
     let mut solver = NewtonSolver::new(topo, &level.disc, &level.sys);
     if level.sys.n_dofs() > 0 {
-        progress.set(0.05);
-        // Closed surfaces without aligned edges may get a second candidate:
-        // leave it the last quarter.
-        let no_aligned = !level.constrained.iter().any(|&c| c);
-        let first = progress.sub(0.05, if no_aligned { 0.7 } else { 0.95 });
-        let kind = solve_levels(&level, &mut solver, &mut f, eps, eps0, opts, &first, &mut report)?;
-        report.initial_guess = match kind {
-            InitialKind::Laplace => "laplace",
-            InitialKind::Eigenvector(_) => "eigenvector",
-            InitialKind::Mixed(_) => "laplace+eigenvector",
-        }
-        .into();
-        report.candidate_energies.push((report.initial_guess.clone(), report.energy));
-        // Closed surfaces without any aligned edge get a second candidate,
-        // unless their curvature is (nearly) isotropic.
-        let curvature = if matches!(kind, InitialKind::Eigenvector(_)) {
-            let (g, anisotropy) = principal_curvature_field(mesh, topo, &level.disc);
-            report.curvature_anisotropy = anisotropy;
-            (anisotropy >= MIN_ANISOTROPY).then_some(g)
-        } else {
-            None
-        };
-        if let Some(mut g) = curvature {
-            // Candidate 2: aligned with the principal curvature directions,
-            // solved at the final ε only (a continuation from large ε would
-            // bring back the eigenvector's singularities). Keep the lower energy.
-            level.reset_fixed(&mut g);
-            let mut alt = CrossfieldReport::default();
-            let second = progress.sub(0.7, 0.95);
-            run_continuation(&level, &mut solver, &mut g, &[eps], None, opts, &second, &mut alt)?;
-            report.candidate_energies.push(("principal curvature".into(), alt.energy));
-            report.iterations += alt.iterations;
-            report.history.extend(alt.history);
-            if alt.converged && alt.energy < report.energy {
-                f = g;
-                report.initial_guess = "principal curvature".into();
-                report.final_residual = alt.final_residual;
-                report.energy = alt.energy;
-                report.converged = alt.converged;
-                report.stopped_on_plateau = alt.stopped_on_plateau;
-            }
-        }
+        let continuation = Continuation { eps, eps0, opts };
+        f = solve_candidates(&level, &mut solver, f, &continuation, progress, &mut report)?;
     } else {
         report.initial_guess = "none (all edges fixed)".into();
         report.converged = true;
         report.energy = super::energy::total_energy(&level.disc, topo, &f, &level.params(eps, opts));
     }
     add_solver_counts(&mut report, &solver);
+    let field = crossfield_of(&level, f, report, start);
+    progress.set(1.0);
+    Ok(field)
+}
 
+/// The coherence lengths of a continuation, from `eps0` down to `eps`,
+/// and the options that schedule its stages.
+struct Continuation<'o> {
+    /// Final ε (model units).
+    eps: f64,
+    /// First ε before any eigenvalue-based choice (model units).
+    eps0: f64,
+    opts: &'o CrossfieldOptions,
+}
+
+/// Reject invalid options, an empty mesh and a flag count that is not one
+/// per edge of `topo`, before any work.
+fn check_inputs(
+    mesh: &TriMesh,
+    topo: &Topology,
+    aligned_edges: &[bool],
+    opts: &CrossfieldOptions,
+) -> Result<(), CrossfieldError> {
+    validate_options(opts)?;
+    if mesh.n_faces() == 0 {
+        return Err(CrossfieldError::EmptyMesh);
+    }
+    if aligned_edges.len() != topo.n_edges() {
+        return Err(CrossfieldError::AlignedEdgesLength { expected: topo.n_edges(), got: aligned_edges.len() });
+    }
+    Ok(())
+}
+
+/// Solve the continuation on the input `level` from `f`, then, on a closed
+/// surface without aligned edges whose curvature is anisotropic, the
+/// principal-curvature candidate at the final ε; returns the field of lower
+/// GL energy (3.15) (module doc: the energy, not a heuristic, decides).
+fn solve_candidates(
+    level: &Level,
+    solver: &mut NewtonSolver,
+    mut f: Vec<C64>,
+    continuation: &Continuation,
+    progress: &Progress,
+    report: &mut CrossfieldReport,
+) -> Result<Vec<C64>, CrossfieldError> {
+    progress.set(0.05);
+    // Closed surfaces without aligned edges may get a second candidate:
+    // leave it the last quarter.
+    let no_aligned = !level.constrained.iter().any(|&c| c);
+    let first = progress.sub(0.05, if no_aligned { 0.7 } else { 0.95 });
+    let kind = solve_levels(level, solver, &mut f, continuation, &first, report)?;
+    report.initial_guess = match kind {
+        InitialKind::Laplace => "laplace",
+        InitialKind::Eigenvector(_) => "eigenvector",
+        InitialKind::Mixed(_) => "laplace+eigenvector",
+    }
+    .into();
+    report.candidate_energies.push((report.initial_guess.clone(), report.energy));
+    match curvature_candidate(level, kind, report) {
+        Some(g) => solve_curvature_candidate(level, solver, f, g, continuation, progress, report),
+        None => Ok(f),
+    }
+}
+
+/// The principal-curvature start ([`principal_curvature_field`], fixed
+/// edges reset) when the first candidate started from the eigenvector (a
+/// closed surface without any aligned edge) and the curvature is not
+/// (nearly) isotropic; records the anisotropy in `report`.
+fn curvature_candidate(level: &Level, kind: InitialKind, report: &mut CrossfieldReport) -> Option<Vec<C64>> {
+    if !matches!(kind, InitialKind::Eigenvector(_)) {
+        return None;
+    }
+    let (mut g, anisotropy) = principal_curvature_field(level.mesh, level.topo, &level.disc);
+    report.curvature_anisotropy = anisotropy;
+    if anisotropy < MIN_ANISOTROPY {
+        return None;
+    }
+    level.reset_fixed(&mut g);
+    Some(g)
+}
+
+/// Candidate 2: the field aligned with the principal curvature directions
+/// `g`, solved at the final ε only (a continuation from large ε would bring
+/// back the eigenvector's singularities). Returns whichever of `f` (the
+/// first candidate, whose numbers `report` holds) and the solved `g` has
+/// the lower energy, with `report` updated to match.
+fn solve_curvature_candidate(
+    level: &Level,
+    solver: &mut NewtonSolver,
+    f: Vec<C64>,
+    mut g: Vec<C64>,
+    continuation: &Continuation,
+    progress: &Progress,
+    report: &mut CrossfieldReport,
+) -> Result<Vec<C64>, CrossfieldError> {
+    let mut alt = CrossfieldReport::default();
+    let second = progress.sub(0.7, 0.95);
+    let stages = Stages { schedule: vec![continuation.eps], previous: None };
+    run_continuation(level, solver, &mut g, &stages, continuation.opts, &second, &mut alt)?;
+    report.candidate_energies.push(("principal curvature".into(), alt.energy));
+    report.iterations += alt.iterations;
+    report.history.extend(alt.history);
+    if !(alt.converged && alt.energy < report.energy) {
+        return Ok(f);
+    }
+    report.initial_guess = "principal curvature".into();
+    report.final_residual = alt.final_residual;
+    report.energy = alt.energy;
+    report.converged = alt.converged;
+    report.stopped_on_plateau = alt.stopped_on_plateau;
+    Ok(g)
+}
+
+/// The crossfield of the solved edge values `f` on the input `level`: the
+/// per-triangle crosses, the vertex indices and singularities, checked
+/// against Poincaré–Hopf (3.13) through the reported index sum and Euler
+/// characteristic; `report` completed with them and the wall time since
+/// `start`.
+fn crossfield_of(level: &Level, f: Vec<C64>, mut report: CrossfieldReport, start: Instant) -> Crossfield {
+    let (mesh, topo) = (level.mesh, level.topo);
     let idx = vertex_indices(mesh, topo, &level.disc, &f);
     let chi = topology_summary(mesh, topo).euler_characteristic;
     let (cross_per_face, norm_per_face) = face_crosses(mesh, topo, &level.disc, &f);
@@ -340,9 +408,8 @@ pub fn compute_crossfield(
     report.index_sum = idx.index_sum;
     report.euler_characteristic = chi;
     report.wall_seconds = start.elapsed().as_secs_f64();
-    progress.set(1.0);
-    Ok(Crossfield {
-        symmetry: n,
+    Crossfield {
+        symmetry: report.symmetry,
         f_per_edge: f.iter().map(|z| [z.re, z.im]).collect(),
         cross_per_face,
         norm_per_face,
@@ -351,7 +418,7 @@ pub fn compute_crossfield(
         euler_characteristic: chi,
         index_sum: idx.index_sum,
         report,
-    })
+    }
 }
 
 /// The continuation from `eps0` down to `eps` on `level` (field `f`, solver
@@ -363,81 +430,40 @@ pub fn compute_crossfield(
 /// stages (the vortices entering and settling, most of the Newton
 /// iterations) thus cost a fraction of a fine factorization each. Returns
 /// the kind of initial field (computed on the coarsest level).
-#[allow(clippy::too_many_arguments)]
 fn solve_levels(
     level: &Level,
     solver: &mut NewtonSolver,
     f: &mut [C64],
-    eps: f64,
-    eps0: f64,
-    opts: &CrossfieldOptions,
+    continuation: &Continuation,
     progress: &Progress,
     report: &mut CrossfieldReport,
 ) -> Result<InitialKind, CrossfieldError> {
     let t0 = Instant::now();
-    let mut coarse_seconds = 0.0;
-    let eps_c = coarse_epsilon(eps, opts.continuation_factor);
-    let target = (level.mesh.n_faces() as f64 * (eps / eps_c).powi(2)) as usize;
-    let wants_coarse = opts.multilevel
-        && level.mesh.n_faces() >= opts.multilevel_min_faces
-        && target >= if level.depth == 0 { MIN_COARSE_FACES } else { MIN_NESTED_COARSE_FACES }
-        && eps_c < eps0;
-    // The coarse levels (coarsening, their continuation, the transfer) run
-    // beside this level's symbolic analysis, which only needs the pattern:
-    // on 1M triangles the nested-dissection ordering alone takes ~10 s.
-    let coarse = if wants_coarse {
-        let t_coarse = Instant::now();
-        let marks = (report.history.len(), report.levels.len(), report.epsilon_schedule.len());
-        let (analysis, coarse) =
-            rayon::join(|| solver.analyze(), || solve_coarse(level, target, eps_c, eps0, opts, progress, report));
-        analysis?;
-        coarse_seconds = t_coarse.elapsed().as_secs_f64();
-        match coarse {
-            Ok(c) => c,
-            Err(e @ CrossfieldError::Cancelled(_)) => return Err(e),
-            // A coarse level is an accelerator: if it fails (a factorization
-            // of a poorly shaped copy, say), solve this level on its own.
-            Err(_) => {
-                report.history.truncate(marks.0);
-                report.levels.truncate(marks.1);
-                report.epsilon_schedule.truncate(marks.2);
-                None
-            }
-        }
-    } else {
-        None
-    };
-    let (kind, previous, schedule) = match coarse {
+    let opts = continuation.opts;
+    let eps_c = coarse_epsilon(continuation.eps, opts.continuation_factor);
+    let t_coarse = Instant::now();
+    let coarse = solve_coarse_levels(level, solver, eps_c, continuation, progress, report)?;
+    let coarse_seconds = t_coarse.elapsed().as_secs_f64();
+    let (kind, stages) = match coarse {
         Some((kind, g)) => {
             f.copy_from_slice(&g);
-            let schedule = epsilon_schedule(eps_c, eps, opts.continuation_factor)[1..].to_vec();
-            (kind, Some(eps_c), schedule)
+            let schedule = epsilon_schedule(eps_c, continuation.eps, opts.continuation_factor)[1..].to_vec();
+            (kind, Stages { schedule, previous: Some(eps_c) })
         }
         None => {
-            let mut schedule = epsilon_schedule(eps0, eps, opts.continuation_factor);
-            let kind = initial_field(solver, f, &level.params(schedule[0], opts), &level.constrained)?;
-            // Without boundary data, f = 0 is the GL minimizer as long as
-            // 1/ε² ≤ λ₁ (the smallest eigenvalue of the connection Laplacian):
-            // start the continuation where 1/ε₀² = 4 λ₁, i.e. |f|² ≈ 3/4.
-            if let InitialKind::Eigenvector(l1) | InitialKind::Mixed(l1) = kind
-                && l1 > 0.0
-                && opts.epsilon_start.is_none()
-            {
-                let e0 = (0.5 / l1.sqrt()).min(eps0).max(eps);
-                schedule = epsilon_schedule(e0, eps, opts.continuation_factor);
-            }
-            (kind, None, schedule)
+            let (kind, schedule) = fresh_start(level, solver, f, continuation)?;
+            (kind, Stages { schedule, previous: None })
         }
     };
-    let stages = if previous.is_some() { progress.sub(0.3, 1.0) } else { progress.clone() };
+    let stage_progress = if stages.previous.is_some() { progress.sub(0.3, 1.0) } else { progress.clone() };
     let iterations = report.iterations;
-    run_continuation(level, solver, f, &schedule, previous, opts, &stages, report)?;
-    report.epsilon_schedule.extend_from_slice(&schedule);
+    run_continuation(level, solver, f, &stages, opts, &stage_progress, report)?;
+    report.epsilon_schedule.extend_from_slice(&stages.schedule);
     report.levels.push(LevelReport {
         level: level.depth,
         n_faces: level.mesh.n_faces(),
         n_edges: level.topo.n_edges(),
-        epsilon_schedule: schedule,
+        epsilon_schedule: stages.schedule,
         iterations: report.iterations - iterations,
         n_factorizations: 0,
         seconds: t0.elapsed().as_secs_f64() - coarse_seconds,
@@ -445,27 +471,94 @@ fn solve_levels(
     Ok(kind)
 }
 
+/// The stages of a continuation down to `eps_c` on a coarsened copy of
+/// `level` ([`solve_coarse`]) when the level is large enough to have one,
+/// run beside this level's symbolic analysis, which only needs the
+/// pattern: on large meshes the nested-dissection ordering alone is the
+/// longest part of the setup. Returns the initial kind and the field transferred to `level`,
+/// or `None` when there is no coarse level; a coarse level that fails
+/// (other than by cancellation) is an accelerator lost, not an error: its
+/// records are removed from `report` and `None` returned.
+fn solve_coarse_levels(
+    level: &Level,
+    solver: &mut NewtonSolver,
+    eps_c: f64,
+    continuation: &Continuation,
+    progress: &Progress,
+    report: &mut CrossfieldReport,
+) -> Result<Option<(InitialKind, Vec<C64>)>, CrossfieldError> {
+    let opts = continuation.opts;
+    let target = (level.mesh.n_faces() as f64 * (continuation.eps / eps_c).powi(2)) as usize;
+    let wants_coarse = opts.multilevel
+        && level.mesh.n_faces() >= opts.multilevel_min_faces
+        && target >= if level.depth == 0 { MIN_COARSE_FACES } else { MIN_NESTED_COARSE_FACES }
+        && eps_c < continuation.eps0;
+    if !wants_coarse {
+        return Ok(None);
+    }
+    let marks = (report.history.len(), report.levels.len(), report.epsilon_schedule.len());
+    let coarse_continuation = Continuation { eps: eps_c, eps0: continuation.eps0, opts };
+    let (analysis, coarse) =
+        rayon::join(|| solver.analyze(), || solve_coarse(level, target, &coarse_continuation, progress, report));
+    analysis?;
+    match coarse {
+        Ok(c) => Ok(c),
+        Err(e @ CrossfieldError::Cancelled(_)) => Err(e),
+        // A coarse level is an accelerator: if it fails (a factorization
+        // of a poorly shaped copy, say), solve this level on its own.
+        Err(_) => {
+            report.history.truncate(marks.0);
+            report.levels.truncate(marks.1);
+            report.epsilon_schedule.truncate(marks.2);
+            Ok(None)
+        }
+    }
+}
+
+/// The initial field on `level` (into `f`) and the ε schedule from it,
+/// when no coarse level gave one. Without boundary data, f = 0 is the GL
+/// minimizer as long as 1/ε² ≤ λ₁ (the smallest eigenvalue of the
+/// connection Laplacian): the continuation then starts where 1/ε₀² = 4 λ₁,
+/// i.e. |f|² ≈ 3/4 (unless `epsilon_start` is set).
+fn fresh_start(
+    level: &Level,
+    solver: &mut NewtonSolver,
+    f: &mut [C64],
+    continuation: &Continuation,
+) -> Result<(InitialKind, Vec<f64>), CrossfieldError> {
+    let (eps, eps0, opts) = (continuation.eps, continuation.eps0, continuation.opts);
+    let mut schedule = epsilon_schedule(eps0, eps, opts.continuation_factor);
+    let kind = initial_field(solver, f, &level.params(schedule[0], opts), &level.constrained)?;
+    if let InitialKind::Eigenvector(l1) | InitialKind::Mixed(l1) = kind
+        && l1 > 0.0
+        && opts.epsilon_start.is_none()
+    {
+        let e0 = (0.5 / l1.sqrt()).min(eps0).max(eps);
+        schedule = epsilon_schedule(e0, eps, opts.continuation_factor);
+    }
+    Ok((kind, schedule))
+}
+
 /// Coarsen `level` towards `target` triangles and solve the continuation
-/// down to `eps_c` there (recursively, [`solve_levels`]); returns the kind of
-/// initial field and the result transferred to `level` (fixed edges reset),
-/// or `None` when coarsening does not serve (see [`coarsen`]).
-#[allow(clippy::too_many_arguments)]
+/// down to `continuation.eps` there (recursively, [`solve_levels`]);
+/// returns the kind of initial field and the result transferred to `level`
+/// (fixed edges reset), or `None` when coarsening does not serve (see
+/// [`coarsen`]).
 fn solve_coarse(
     level: &Level,
     target: usize,
-    eps_c: f64,
-    eps0: f64,
-    opts: &CrossfieldOptions,
+    continuation: &Continuation,
     progress: &Progress,
     report: &mut CrossfieldReport,
 ) -> Result<Option<(InitialKind, Vec<C64>)>, CrossfieldError> {
     let Some(c) = coarsen(level, target) else {
         return Ok(None);
     };
+    let opts = continuation.opts;
     let cl = Level::new(&c.mesh, &c.topo, c.aligned.clone(), level.depth + 1, opts)?;
     let mut cs = NewtonSolver::new(&c.topo, &cl.disc, &cl.sys);
     let mut fc = vec![C64::new(1.0, 0.0); c.topo.n_edges()];
-    let kind = solve_levels(&cl, &mut cs, &mut fc, eps_c, eps0, opts, &progress.sub(0.0, 0.3), report)?;
+    let kind = solve_levels(&cl, &mut cs, &mut fc, continuation, &progress.sub(0.0, 0.3), report)?;
     add_solver_counts(report, &cs);
     let mut g = transfer_to_fine(&c.mesh, &c.topo, &cl.disc, &fc, level.mesh, level.topo);
     level.reset_fixed(&mut g);
@@ -483,58 +576,40 @@ fn add_solver_counts(report: &mut CrossfieldReport, solver: &NewtonSolver) {
     }
 }
 
-/// Newton minimizations along the ε `schedule` on `level`, accumulating into
-/// `report`; `previous` is the ε the field `f` was solved at (`None` for a
-/// fresh initial field). The last stage on the input mesh is solved to
-/// `tolerance`, every other to `continuation_tolerance`.
-#[allow(clippy::too_many_arguments)]
+/// The ε stages one call of [`run_continuation`] solves: `schedule`, from
+/// a field solved at `previous` (`None` for a fresh initial field).
+struct Stages {
+    schedule: Vec<f64>,
+    previous: Option<f64>,
+}
+
+/// Newton minimizations along the ε `stages` on `level`, accumulating into
+/// `report`. The last stage on the input mesh is solved to `tolerance`,
+/// every other to `continuation_tolerance`.
 fn run_continuation(
     level: &Level,
     solver: &mut NewtonSolver,
     f: &mut [C64],
-    schedule: &[f64],
-    previous: Option<f64>,
+    stages: &Stages,
     opts: &CrossfieldOptions,
     progress: &Progress,
     report: &mut CrossfieldReport,
 ) -> Result<(), CrossfieldError> {
-    let n_stages = schedule.len();
+    let n_stages = stages.schedule.len();
     // Only the input mesh has a final stage; a coarse level's last ε is an
     // intermediate one of the whole continuation.
     let finest = level.depth == 0;
-    let mut previous = previous;
-    for (s, &e) in schedule.iter().enumerate() {
+    let mut previous = stages.previous;
+    for (s, &e) in stages.schedule.iter().enumerate() {
         if let Some(p) = previous {
             shrink_cores(solver, f, p / e);
         }
         let last = finest && s + 1 == n_stages;
-        let tol = if last { opts.tolerance } else { opts.continuation_tolerance };
         let stage_progress = progress.sub(s as f64 / n_stages as f64, (s + 1) as f64 / n_stages as f64);
-        let first_record = report.history.len();
-        let singular = |g: &[C64]| {
-            vertex_indices(level.mesh, level.topo, &level.disc, g)
-                .index_per_vertex
-                .iter()
-                .enumerate()
-                .filter(|&(_, &k)| k != 0)
-                .map(|(v, &k)| (v as u32, k))
-                .collect()
-        };
-        let out = solver.minimize(
-            f,
-            &level.params(e, opts),
-            e,
-            tol,
-            if last { opts.max_newton_iterations } else { (opts.max_newton_iterations / 3).max(10) },
-            !last,
-            if previous.is_some() { 1.0 } else { 0.0 },
-            Some(&singular),
-            &stage_progress,
-            &mut report.history,
-        )?;
-        for r in &mut report.history[first_record..] {
-            r.level = level.depth;
-        }
+        let spec = stage_spec(e, last, previous.is_some(), opts);
+        let singular = |g: &[C64]| singular_vertices(level, g);
+        let out = solver.minimize(f, &level.params(e, opts), &spec, Some(&singular), &stage_progress)?;
+        report.history.extend(out.history.into_iter().map(|r| NewtonRecord { level: level.depth, ..r }));
         report.iterations += out.iterations;
         report.final_residual = out.residual;
         report.energy = out.energy;
@@ -544,6 +619,32 @@ fn run_continuation(
         previous = Some(e);
     }
     Ok(())
+}
+
+/// The stage at ε = `e`: the final one (`last`) to `tolerance` with all
+/// `max_newton_iterations`, an intermediate one to `continuation_tolerance`
+/// with a third of them (at least 10), stopping when the energy stalls; μ
+/// starts at 1 after a decrease of ε (`shrunk`), else at 0.
+fn stage_spec(e: f64, last: bool, shrunk: bool, opts: &CrossfieldOptions) -> StageSpec {
+    StageSpec {
+        eps: e,
+        tol: if last { opts.tolerance } else { opts.continuation_tolerance },
+        max_iter: if last { opts.max_newton_iterations } else { (opts.max_newton_iterations / 3).max(10) },
+        stop_on_stall: !last,
+        mu_start: if shrunk { 1.0 } else { 0.0 },
+    }
+}
+
+/// The singular vertices of the field `g` on `level` with their indices
+/// (units of 1/N), in vertex order: what the final stage watches.
+fn singular_vertices(level: &Level, g: &[C64]) -> Vec<(u32, i32)> {
+    vertex_indices(level.mesh, level.topo, &level.disc, g)
+        .index_per_vertex
+        .iter()
+        .enumerate()
+        .filter(|&(_, &k)| k != 0)
+        .map(|(v, &k)| (v as u32, k))
+        .collect()
 }
 
 /// Predictor for a smaller ε: a vortex core has the profile `|f| ≈ ρ(r/ε)`

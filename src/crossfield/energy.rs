@@ -114,15 +114,29 @@ pub fn element_energy(fd: &FaceData, f: [C64; 3], inv_eps2: f64) -> f64 {
     0.5 * dir + 0.25 * fd.area * inv_eps2 * qmq
 }
 
-/// Energy, gradient and Hessian of one triangle (edge-frame unknowns).
+/// Energy, gradient and Hessian of one triangle (edge-frame unknowns): the
+/// element vector and matrix of the Newton step (thesis (3.21), (3.20), as
+/// corrected in the module doc), in the triangle frame, then rotated to the
+/// edge frames (`k = Rᵀ K R`, `b = Rᵀ B`).
 pub fn element_derivatives(fd: &FaceData, f: [C64; 3], inv_eps2: f64, kind: HessianKind) -> ElementResult {
     let mut out = ElementResult { energy: 0.0, grad: [0.0; 6], hess: [[0.0; 6]; 6] };
     if fd.area == 0.0 {
         return out;
     }
     let big_f = to_face_frame(fd, f);
-    let s = &fd.stiffness;
-    // Gradient and Hessian in the triangle frame.
+    let (mut g, dir, mut h) = dirichlet_derivatives(&fd.stiffness, &big_f);
+    let mut energy = 0.5 * dir;
+    if inv_eps2 > 0.0 {
+        energy += add_penalty_derivatives(fd.area * inv_eps2, &big_f, kind, &mut g, &mut h);
+    }
+    out.energy = energy;
+    rotate_to_edge_frames(fd, &g, &h, &mut out);
+    out
+}
+
+/// The Dirichlet term in the triangle frame: its gradient `Σ_j S_kj F_j`,
+/// `Σ_k Re(F̄_k (S F)_k)` (twice its energy) and its Hessian `S_kl I`.
+fn dirichlet_derivatives(s: &[[f64; 3]; 3], big_f: &[C64; 3]) -> ([C64; 3], f64, [[f64; 6]; 6]) {
     let mut g = [C64::new(0.0, 0.0); 3];
     let mut dir = 0.0;
     for k in 0..3 {
@@ -138,74 +152,100 @@ pub fn element_derivatives(fd: &FaceData, f: [C64; 3], inv_eps2: f64, kind: Hess
             h[2 * k + 1][2 * l + 1] = s[k][l];
         }
     }
-    let mut energy = 0.5 * dir;
-    if inv_eps2 > 0.0 {
-        let a = fd.area * inv_eps2;
-        let u = node_values(&big_f);
-        let (mq, qmq) = penalty_moments(&u);
-        energy += 0.25 * a * qmq;
-        // V[2k+c][m] = c_mk U_m[c].
-        let mut v = [[0.0; 6]; 6];
-        for m in 0..6 {
-            let c = P2_NODE_FROM_CR[m];
-            for k in 0..3 {
-                v[2 * k][m] = c[k] * u[m].re;
-                v[2 * k + 1][m] = c[k] * u[m].im;
-            }
-            for k in 0..3 {
-                g[k] += u[m] * (a * mq[m] * c[k]);
-            }
+    (g, dir, h)
+}
+
+/// Add the penalty's gradient and Hessian (module doc, `a = A/ε²`) to `g`
+/// and `h` (triangle frame; `kind` chooses the exact or the modified last
+/// term); returns the penalty energy `a/4 · qᵀ M₂ q`.
+fn add_penalty_derivatives(
+    a: f64,
+    big_f: &[C64; 3],
+    kind: HessianKind,
+    g: &mut [C64; 3],
+    h: &mut [[f64; 6]; 6],
+) -> f64 {
+    let u = node_values(big_f);
+    let (mq, qmq) = penalty_moments(&u);
+    for m in 0..6 {
+        let c = P2_NODE_FROM_CR[m];
+        for k in 0..3 {
+            g[k] += u[m] * (a * mq[m] * c[k]);
         }
-        // P = V M₂.
-        let mut pm = [[0.0; 6]; 6];
-        for r in 0..6 {
+    }
+    add_node_outer_products(a, &u, h);
+    add_weighted_mass(a, &mq, kind, h);
+    // The V M₂ Vᵀ part was added to the lower triangle only: mirror it.
+    for r in 0..6 {
+        for c2 in 0..r {
+            h[c2][r] = h[r][c2];
+        }
+    }
+    0.25 * a * qmq
+}
+
+/// Add `2a V M₂ Vᵀ` to the lower triangle of `h`, with
+/// `V[2k+c][m] = c_mk U_m[c]`: the `(2A/ε²) Σ_mn M₂_mn c_mk c_nl U_m U_nᵀ`
+/// term (positive semi-definite).
+fn add_node_outer_products(a: f64, u: &[C64; 6], h: &mut [[f64; 6]; 6]) {
+    let mut v = [[0.0; 6]; 6];
+    for m in 0..6 {
+        let c = P2_NODE_FROM_CR[m];
+        for k in 0..3 {
+            v[2 * k][m] = c[k] * u[m].re;
+            v[2 * k + 1][m] = c[k] * u[m].im;
+        }
+    }
+    // P = V M₂.
+    let mut pm = [[0.0; 6]; 6];
+    for r in 0..6 {
+        for n in 0..6 {
+            let mut acc = 0.0;
+            for m in 0..6 {
+                acc += v[r][m] * P2_MASS_OVER_AREA[m][n];
+            }
+            pm[r][n] = acc;
+        }
+    }
+    for r in 0..6 {
+        for c2 in 0..=r {
+            let mut acc = 0.0;
             for n in 0..6 {
-                let mut acc = 0.0;
-                for m in 0..6 {
-                    acc += v[r][m] * P2_MASS_OVER_AREA[m][n];
-                }
-                pm[r][n] = acc;
+                acc += pm[r][n] * v[c2][n];
             }
+            h[r][c2] += 2.0 * a * acc;
         }
-        for r in 0..6 {
-            for c2 in 0..=r {
-                let mut acc = 0.0;
-                for n in 0..6 {
-                    acc += pm[r][n] * v[c2][n];
-                }
-                h[r][c2] += 2.0 * a * acc;
-            }
-        }
-        // Σ_m w_m c_mk c_ml I with w_m = a (M₂q)_m (clamped at 0 when modified).
-        let mut d = [[0.0; 3]; 3];
-        for m in 0..6 {
-            let w = match kind {
-                HessianKind::Exact => a * mq[m],
-                HessianKind::Modified => a * mq[m].max(0.0),
-            };
-            let c = P2_NODE_FROM_CR[m];
-            for k in 0..3 {
-                for l in 0..3 {
-                    d[k][l] += w * c[k] * c[l];
-                }
-            }
-        }
+    }
+}
+
+/// Add `Σ_m w_m c_mk c_ml I` with `w_m = a (M₂q)_m` to `h`: the term that is
+/// indefinite where `|F| < 1`, clamped at 0 for the modified Hessian.
+fn add_weighted_mass(a: f64, mq: &[f64; 6], kind: HessianKind, h: &mut [[f64; 6]; 6]) {
+    let mut d = [[0.0; 3]; 3];
+    for m in 0..6 {
+        let w = match kind {
+            HessianKind::Exact => a * mq[m],
+            HessianKind::Modified => a * mq[m].max(0.0),
+        };
+        let c = P2_NODE_FROM_CR[m];
         for k in 0..3 {
             for l in 0..3 {
-                h[2 * k][2 * l] += d[k][l];
-                h[2 * k + 1][2 * l + 1] += d[k][l];
-            }
-        }
-        // The V M₂ Vᵀ part was added to the lower triangle only: mirror it.
-        for r in 0..6 {
-            for c2 in 0..r {
-                h[c2][r] = h[r][c2];
+                d[k][l] += w * c[k] * c[l];
             }
         }
     }
-    out.energy = energy;
-    // Rotate to edge frames: g_k = R_kᵀ G_k (multiplication by conj r_k),
-    // h_kl = R_kᵀ H_kl R_l.
+    for k in 0..3 {
+        for l in 0..3 {
+            h[2 * k][2 * l] += d[k][l];
+            h[2 * k + 1][2 * l + 1] += d[k][l];
+        }
+    }
+}
+
+/// Rotate the triangle-frame gradient `g` and Hessian `h` to the edge
+/// frames into `out`: `g_k = R_kᵀ G_k` (multiplication by `conj r_k`),
+/// `h_kl = R_kᵀ H_kl R_l`.
+fn rotate_to_edge_frames(fd: &FaceData, g: &[C64; 3], h: &[[f64; 6]; 6], out: &mut ElementResult) {
     for k in 0..3 {
         let gk = fd.rot[k].conj() * g[k];
         out.grad[2 * k] = gk.re;
@@ -228,7 +268,6 @@ pub fn element_derivatives(fd: &FaceData, f: [C64; 3], inv_eps2: f64, kind: Hess
             out.hess[2 * k + 1][2 * l + 1] = -sk * br[0][1] + ck * br[1][1];
         }
     }
-    out
 }
 
 /// Problem data that changes with ε: `1/ε²`, the weak-term coefficient and

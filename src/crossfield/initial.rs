@@ -30,9 +30,8 @@ const MAX_INVERSE_ITERATIONS: usize = 50;
 /// Relative change of the Rayleigh quotient that stops the inverse iteration.
 /// The quotient converges like the square of the vector, so 10⁻⁵ leaves the
 /// starting field within ~0.3 % of the eigenspace, plenty for an initial
-/// guess. With 10⁻⁸ the icospheres' nearly degenerate lowest eigenspace
-/// used all 50 solves; with 10⁻⁵ they stop after 7 (same singularity
-/// pattern, final energies within 2·10⁻⁶ relative; torus_20k: 50 → 41).
+/// guess; a tighter value spends every solve on a nearly degenerate lowest
+/// eigenspace for the same result (`docs/decisions.md`).
 const RAYLEIGH_TOLERANCE: f64 = 1e-5;
 
 /// Which initial field was computed.

@@ -62,8 +62,8 @@ pub struct CrossfieldOptions {
     /// ε as a multiple of the mean edge length when `epsilon` is not given.
     /// Default 1: the smallest ε whose core the CR field still resolves
     /// (smaller ε locks the field to be constant per triangle), and small
-    /// enough for the asymptotic regime on the test surfaces (on the torus
-    /// R = 1, r = 0.4 with 20k triangles, ε = 2h still prefers 12 vortices).
+    /// enough for the asymptotic regime on the test surfaces (on the torus,
+    /// ε = 2h still prefers 12 vortices: `docs/decisions.md`).
     pub epsilon_per_edge_length: f64,
     /// First ε of the continuation, model units. Default (`null`): a quarter
     /// of the bounding-box diagonal (never below the final ε); without aligned
@@ -73,18 +73,16 @@ pub struct CrossfieldOptions {
     /// Ratio between consecutive ε of the continuation, in (0, 1). Default
     /// 0.25: each stage still starts close to its minimizer once the cores
     /// are shrunk (`shrink_cores`), and half the stages cost half the
-    /// stage-start factorizations (disk:129: 8 → 5 stages, 41 → 33 Newton
-    /// iterations, 25 → 17 factorizations; same singularities and radii
-    /// within 2·10⁻⁴).
+    /// stage-start factorizations, with the same singularities
+    /// (`docs/decisions.md`).
     pub continuation_factor: f64,
     /// Final tolerance on the scaled residual `ε² ‖Δf − (|f|²−1) f/ε²‖_{L²}/√area`
     /// (dimensionless). Default 1e-8.
     pub tolerance: f64,
     /// Tolerance for the intermediate ε of the continuation. Default 1e-3:
     /// an intermediate stage only has to put the cores roughly in place for
-    /// the next one (torus_20k: 38 → 18 Newton iterations; the kept
-    /// principal-curvature candidate is unchanged, the eigenvector one ends
-    /// at 80.490 instead of 80.483).
+    /// the next one (half the Newton iterations, same result:
+    /// `docs/decisions.md`).
     pub continuation_tolerance: f64,
     /// Maximum Newton iterations of the final ε (intermediate ε: a third of
     /// it, at least 10). Default 60.
@@ -99,10 +97,9 @@ pub struct CrossfieldOptions {
     pub multilevel: bool,
     /// Triangles from which a mesh is coarsened for the multilevel
     /// continuation (the coarse copy also needs at least 150 triangles, or
-    /// 2000 when it is the copy of a copy). Default 2000: sphere_3k (a
-    /// 210-triangle level for ε ≥ 0.37) and torus_20k (1294) run about
-    /// 25 % faster than on one level (0.15–0.20 → 0.12–0.16 s, 1.2–1.3 →
-    /// 0.8–1.1 s), same singularities.
+    /// 2000 when it is the copy of a copy). Default 2000: meshes of a few
+    /// thousand triangles already run faster on two levels, with the same
+    /// singularities (`docs/decisions.md`).
     pub multilevel_min_faces: usize,
 }
 

@@ -16,12 +16,10 @@
 //! penalty is bounded by `M/ε²`, so μ ≈ 1 always succeeds); lower it ×10
 //! after a full step (unless the step's own curvature says the lower μ
 //! cannot factor, [`NewtonSolver::curvature_allows`]: one matrix-vector
-//! product instead of a failed factorization; disk_3k 56 → 52
-//! factorizations), raise it ×10 after a strongly cut one. (×100 steps
-//! overshoot: a stage whose Hessian needs μ ≈ 0.1 alternated between a
-//! failed factorization at 10⁻² and an over-damped step at 1, creeping for
-//! 20 iterations; the sphere_3k run went from 125 to 40 factorizations.) Starting low
-//! matters: vortex motion is a nearly flat (sometimes slightly negative)
+//! product instead of a failed factorization), raise it ×10 after a
+//! strongly cut one. (×100 steps overshoot: a stage whose Hessian needs
+//! μ ≈ 0.1 alternates between a failed factorization and an over-damped
+//! step; runs in `docs/decisions.md`.) Starting low matters: vortex motion is a nearly flat (sometimes slightly negative)
 //! direction, and a large μ would make vortices creep. Near a minimizer μ
 //! returns to 0: pure Newton, quadratic convergence. Clamping the indefinite
 //! term instead (the "modified" Hessian of [`super::energy`], kept only as a
@@ -39,7 +37,8 @@
 //! factorization of the stage, to the relative residual `√res` (inexact
 //! Newton, clamped to [10⁻⁶, 0.1]); negative curvature or
 //! [`KRYLOV_MAX_ITER`] iterations fall back to refactoring (with the μ
-//! raises above). disk:129: 68 → 30 factorizations for 50 CG iterations.
+//! raises above). This halves the factorizations of large systems
+//! (`docs/decisions.md`).
 //!
 //! Saddles. An intermediate stage stops at its (loose) tolerance only if
 //! the last factorization attempt did not fail: a failure means
@@ -54,8 +53,8 @@
 //! steps then move the pattern by about a cell per iteration (the residual
 //! stays near 10⁻⁴, the energy drops by ~10⁻⁷ relative per step) and the
 //! 10⁻⁸ tolerance is only reached once the rotation settles, after tens of
-//! iterations that change neither the vortex count nor the radii (disk:129:
-//! 61 iterations, r = 0.8504 before and after). The final stage therefore
+//! iterations that change neither the vortex count nor the radii
+//! (`docs/decisions.md`). The final stage therefore
 //! also stops, as converged, when over [`FINAL_STALL_WINDOW`] iterations the
 //! energy decreased by less than [`FINAL_STALL_DECREASE`] (relative) while
 //! the residual stayed below [`FINAL_STALL_RESIDUAL`] (a plateau, not a
@@ -67,9 +66,9 @@
 
 use super::energy::{EnergyParams, HessianKind, total_energy};
 use super::frames::{C64, Discretization};
-use super::system::NewtonSystem;
+use super::system::{Assembled, NewtonSystem};
 use super::{CrossfieldError, NewtonRecord};
-use crate::linalg::{FillOrdering, SupernodalCholesky};
+use crate::linalg::{CgOptions, FillOrdering, SupernodalCholesky, conjugate_gradients};
 use crate::mesh::Topology;
 use crate::progress::Progress;
 
@@ -83,43 +82,37 @@ const STALL_WINDOW: usize = 5;
 const STALL_DECREASE: f64 = 1e-7;
 /// Final stage: iterations over which the energy must decrease ...
 const FINAL_STALL_WINDOW: usize = 5;
-/// ... by at least this relative amount while ... (3·10⁻⁵: on disk_3k the
-/// iterations this cuts, 36 → 26, only turned the four-vortex pattern by
-/// 1.6° with the radii unchanged at 0.8514–0.8517, for 2.5·10⁻⁵ of energy;
-/// 10⁻⁵ before)
+/// ... by at least this relative amount while ... (the iterations a
+/// smaller value adds only turn the vortex pattern, radii unchanged:
+/// `docs/decisions.md`)
 const FINAL_STALL_DECREASE: f64 = 3e-5;
 /// ... the scaled residual stays below this, or the stage stops (plateau).
 const FINAL_STALL_RESIDUAL: f64 = 1e-3;
 /// Newton systems from this many real unknowns on reuse the factorization
-/// as a CG preconditioner. Below, refactoring costs only a few solves:
-/// torus_20k (62k unknowns) took 4.7 s with CG (14 factorizations, 148 CG
-/// iterations) against 2.7 s without (40 factorizations); disk:129 (300k)
-/// 19 → 16 s.
+/// as a CG preconditioner. Below, refactoring costs only a few solves, and
+/// CG was slower (`docs/decisions.md`).
 pub const KRYLOV_MIN_DOFS: usize = 200_000;
 /// CG iterations before giving up and refactoring. A solve with the factor
-/// costs about a seventh of a refactorization at 300k unknowns (30 vs
-/// 190–290 ms) and a tenth at 3M (0.37 vs 3.7–4.8 s), and an attempt that
-/// runs out is paid on top of the refactorization: 10 → 5 took disk:129
-/// from 13.1 to 11.4–11.9 s (18 → 23 factorizations, 147 → 103 CG
-/// iterations counting failed attempts) and disk:408 from 194 to 179 s.
+/// costs a seventh to a tenth of a refactorization, and an attempt that
+/// runs out is paid on top of the refactorization, so few iterations pay
+/// best (`docs/decisions.md`).
 const KRYLOV_MAX_ITER: usize = 5;
 /// From this many real unknowns on, the factorization is ordered by METIS
-/// nested dissection on the 2×2 blocks instead of AMD: disk:129 (300k
-/// unknowns) nnz(L) 19.4M → 13.6M, symbolic 0.2 → 0.7 s; disk:408 (3M)
-/// nnz(L) 256M → 170M, numeric 11.0 → 8.4 s, symbolic 4.4 → 10.5 s.
+/// nested dissection on the 2×2 blocks instead of AMD: a third less fill
+/// and faster numeric factorizations for a slower symbolic analysis
+/// (`docs/decisions.md`).
 const NESTED_DISSECTION_MIN_DOFS: usize = 200_000;
 /// Final stage: Newton steps over which the singular vertices must stay the
 /// same (with the residual below [`FINAL_STALL_RESIDUAL`]) for the stage to
 /// stop as settled. The steps after that move the vortex zeros within their
-/// stars, by a fraction of a cell: disk:129 (h = 0.0087) has r = 0.8521
-/// after 2 steps, 0.8513 after 4 and 0.8503 after 9 (r* = 0.8501).
+/// stars, by a fraction of a cell (`docs/decisions.md`).
 const SETTLE_STEPS: usize = 2;
 /// Maximum step halvings.
 const MAX_HALVINGS: usize = 40;
 /// First non-zero Levenberg–Marquardt parameter (units of 1/ε²). 10⁻⁴
-/// rather than 10⁻⁸: a Hessian that fails at μ = 0 needed μ ≈ 10⁻¹ on
-/// sphere_3k, and the raises from 10⁻⁸ cost four more failed factorizations
-/// (factorizations 33 → 29 there, torus_20k 15 → 13, same singularities).
+/// rather than 10⁻⁸: a Hessian that fails at μ = 0 needs μ ≈ 10⁻¹, and
+/// each raise from further below is a failed factorization
+/// (`docs/decisions.md`).
 const MU_FIRST: f64 = 1e-4;
 /// Factor by which μ is raised after a failed factorization, and lowered after a full step.
 const MU_STEP: f64 = 10.0;
@@ -150,8 +143,28 @@ pub struct NewtonSolver<'a> {
     pub krylov_min_dofs: usize,
 }
 
+/// How one stage of the continuation is solved: its coherence length and
+/// the stopping rules of the Newton iterations on (3.16) at that ε.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct StageSpec {
+    /// Coherence length ε of the stage (model units).
+    pub eps: f64,
+    /// Tolerance on the scaled residual (module doc, "Residual"; dimensionless).
+    pub tol: f64,
+    /// Newton steps at most.
+    pub max_iter: usize,
+    /// An intermediate stage: stop when the energy stalls, never at a
+    /// saddle. The final stage (`false`) stops on the plateau rule or once
+    /// the singular vertices settle instead.
+    pub stop_on_stall: bool,
+    /// Levenberg–Marquardt parameter μ of the first step (units of 1/ε²):
+    /// 1 right after ε decreased, where the shrinking cores make the
+    /// Hessian indefinite, else 0.
+    pub mu_start: f64,
+}
+
 /// Outcome of one stage.
-#[derive(Debug, Clone, Copy)]
+#[derive(Debug, Clone)]
 pub struct StageOutcome {
     /// Newton steps taken.
     pub iterations: usize,
@@ -164,6 +177,131 @@ pub struct StageOutcome {
     pub converged: bool,
     /// The final stage stopped on the plateau rule with the residual above the tolerance.
     pub plateau: bool,
+    /// One record per iteration of the stage (`level` 0: the caller knows the level).
+    pub history: Vec<NewtonRecord>,
+}
+
+/// What every step of one stage shares.
+struct StageContext<'s, 'p> {
+    /// The energy (3.15) at this ε, with the weak boundary term.
+    params: &'s EnergyParams<'p>,
+    /// CR mass per real unknown (the Levenberg–Marquardt term `μ M/ε²`).
+    mass: Vec<f64>,
+    /// `1/ε²`.
+    inv_eps2: f64,
+}
+
+/// What the iterations of one stage carry from step to step.
+struct StageState {
+    /// Levenberg–Marquardt parameter μ, in units of 1/ε² (0 = pure Newton).
+    mu: f64,
+    /// Energy before each step so far.
+    energies: Vec<f64>,
+    /// Scaled residual before each step so far.
+    residuals: Vec<f64>,
+    /// Singular vertices (with their indices) before each step (final stage).
+    singular: Vec<Vec<(u32, i32)>>,
+    /// Whether the last factorization (of this stage) may precondition CG.
+    precond_ok: bool,
+    /// Whether the last CG attempt failed: the next step refactors
+    /// directly (in the final stage each step moves the vortex cores, and a
+    /// failed attempt is likely to fail again).
+    cg_failed: bool,
+    /// Whether the last factorization attempts found `H + μM/ε²` indefinite.
+    indefinite: bool,
+}
+
+impl StageState {
+    /// The state before the first step, with μ = `mu_start`.
+    fn new(mu_start: f64) -> Self {
+        Self {
+            mu: mu_start,
+            energies: Vec::new(),
+            residuals: Vec::new(),
+            singular: Vec::new(),
+            precond_ok: false,
+            cg_failed: false,
+            indefinite: false,
+        }
+    }
+
+    /// Whether the stage stops for lack of progress at iteration `it`
+    /// (energy `energy`, scaled residual `res`, singular vertices
+    /// `singular_now` in the final stage), then remember this iteration's
+    /// numbers. Intermediate stages only need the vortices roughly in
+    /// place: they stop when the energy stalls (vortices creeping along a
+    /// flat valley). The final stage stops on a plateau (module doc,
+    /// "Final-stage plateau") or once its singular vertices have settled.
+    fn stalled(
+        &mut self,
+        spec: &StageSpec,
+        it: usize,
+        energy: f64,
+        res: f64,
+        singular_now: Option<Vec<(u32, i32)>>,
+    ) -> bool {
+        let stalled = self.energy_stalled(spec, it, energy, res);
+        let settled = singular_now.is_some_and(|s| self.singularities_settled(it, res, s));
+        self.energies.push(energy);
+        self.residuals.push(res);
+        stalled || settled
+    }
+
+    /// The energy decreased by less than the stall rule allows over the
+    /// last window: [`STALL_DECREASE`] (relative) over [`STALL_WINDOW`]
+    /// steps for an intermediate stage; [`FINAL_STALL_DECREASE`] over
+    /// [`FINAL_STALL_WINDOW`] steps with the residual below
+    /// [`FINAL_STALL_RESIDUAL`] throughout for the final one (a plateau,
+    /// not a transient such as a vortex entering).
+    fn energy_stalled(&self, spec: &StageSpec, it: usize, energy: f64, res: f64) -> bool {
+        let drop = |w: usize| self.energies[it - w] - energy;
+        if spec.stop_on_stall {
+            it >= STALL_WINDOW && drop(STALL_WINDOW) <= STALL_DECREASE * energy.abs()
+        } else {
+            it >= FINAL_STALL_WINDOW
+                && drop(FINAL_STALL_WINDOW) <= FINAL_STALL_DECREASE * energy.abs()
+                && self.residuals_small_since(it - FINAL_STALL_WINDOW, res)
+        }
+    }
+
+    /// Final stage: the singular vertices and their indices (`now` at
+    /// iteration `it`) have not changed over the last [`SETTLE_STEPS`]
+    /// steps, on a small residual. Remembers `now`.
+    fn singularities_settled(&mut self, it: usize, res: f64, now: Vec<(u32, i32)>) -> bool {
+        self.singular.push(now);
+        it >= SETTLE_STEPS
+            && self.singular[it - SETTLE_STEPS..].iter().all(|s| *s == self.singular[it])
+            && self.residuals_small_since(it - SETTLE_STEPS, res)
+    }
+
+    /// The residuals from iteration `from` on, and the current `res`, are
+    /// all below [`FINAL_STALL_RESIDUAL`].
+    fn residuals_small_since(&self, from: usize, res: f64) -> bool {
+        self.residuals[from..].iter().chain(std::iter::once(&res)).all(|&r| r <= FINAL_STALL_RESIDUAL)
+    }
+
+    /// Whether the stage ends at iteration `it` before stepping: the
+    /// tolerance met, a non-finite residual, the iterations spent, or
+    /// `stalled`. An intermediate stage does not stop on the tolerance at a
+    /// point where the last factorization attempt showed negative
+    /// curvature: a small residual there is a saddle (the symmetric vortex
+    /// cluster before it splits), not a minimizer, and the next stage would
+    /// have to split it with smaller, slower cores (`docs/decisions.md`).
+    fn ends(&self, spec: &StageSpec, it: usize, res: f64, stalled: bool) -> bool {
+        let at_saddle = spec.stop_on_stall && self.indefinite;
+        (res <= spec.tol && !at_saddle) || !res.is_finite() || it == spec.max_iter || stalled
+    }
+}
+
+/// μ after a failed factorization or a strongly cut step: [`MU_FIRST`]
+/// from 0, else ×[`MU_STEP`].
+fn raised(mu: f64) -> f64 {
+    if mu == 0.0 { MU_FIRST } else { mu * MU_STEP }
+}
+
+/// `Σ a_i b_i`, in index order.
+fn dot(a: &[f64], b: &[f64]) -> f64 {
+    a.iter().zip(b).map(|(x, y)| x * y).sum()
 }
 
 impl<'a> NewtonSolver<'a> {
@@ -241,43 +379,19 @@ impl<'a> NewtonSolver<'a> {
         rtol: f64,
         max_it: usize,
     ) -> Result<(Option<Vec<f64>>, usize), CrossfieldError> {
-        let n = b.len();
-        let dot = |a: &[f64], b: &[f64]| a.iter().zip(b).map(|(x, y)| x * y).sum::<f64>();
-        let bnorm = dot(b, b).sqrt();
-        let mut x = vec![0.0; n];
-        if bnorm == 0.0 {
-            return Ok((Some(x), 0));
-        }
-        let mut r = b.to_vec();
-        let mut z = r.clone();
-        self.solve(&mut z)?;
-        let mut p = z.clone();
-        let mut rz = dot(&r, &z);
-        let mut q = vec![0.0; n];
-        for k in 1..=max_it {
-            self.sys.sym_matvec(values, &p, &mut q);
-            let pq = dot(&p, &q);
-            if !(pq > 0.0) || !(rz > 0.0) {
-                return Ok((None, k - 1));
-            }
-            let alpha = rz / pq;
-            for i in 0..n {
-                x[i] += alpha * p[i];
-                r[i] -= alpha * q[i];
-            }
-            if dot(&r, &r).sqrt() <= rtol * bnorm {
-                return Ok((Some(x), k));
-            }
-            z.copy_from_slice(&r);
-            self.solve(&mut z)?;
-            let rz_new = dot(&r, &z);
-            let beta = rz_new / rz;
-            rz = rz_new;
-            for i in 0..n {
-                p[i] = z[i] + beta * p[i];
-            }
-        }
-        Ok((None, max_it))
+        let (sys, chol) = (self.sys, &mut self.chol);
+        let apply = |p: &[f64], q: &mut [f64]| {
+            sys.sym_matvec(values, p, q);
+            Ok(())
+        };
+        let precondition = |r: &[f64], z: &mut [f64]| {
+            z.copy_from_slice(r);
+            solve_with(chol, z)
+        };
+        let mut x = vec![0.0; b.len()];
+        let [rep] =
+            conjugate_gradients(apply, precondition, b, &mut x, &CgOptions { rel_tol: rtol, max_iter: max_it })?;
+        Ok((rep.converged.then_some(x), rep.iterations))
     }
 
     /// Whether lowering the Levenberg–Marquardt parameter to `mu_new` keeps
@@ -309,11 +423,7 @@ impl<'a> NewtonSolver<'a> {
     /// # Errors
     /// [`CrossfieldError::Linalg`] when nothing was factored or sizes differ.
     pub fn solve(&mut self, rhs: &mut [f64]) -> Result<(), CrossfieldError> {
-        let c = self.chol.as_mut().ok_or(CrossfieldError::Linalg(crate::linalg::LinalgError::Internal(
-            "solve before factorization".into(),
-        )))?;
-        c.solve_in_place(rhs)?;
-        Ok(())
+        solve_with(&mut self.chol, rhs)
     }
 
     /// Scaled residual of a gradient (see the module doc).
@@ -328,59 +438,42 @@ impl<'a> NewtonSolver<'a> {
         eps * eps * (s / self.disc.area.max(f64::MIN_POSITIVE)).sqrt()
     }
 
-    /// Minimize the energy for one ε from `f` (updated in place), starting
-    /// with the Levenberg–Marquardt parameter `mu_start` (1 right after ε
-    /// decreased, where the shrinking cores make the Hessian indefinite).
+    /// Minimize the energy (3.15) for one ε from `f` (updated in place) by
+    /// Newton steps on (3.16), each solving (3.19) with the Hessian (3.20)
+    /// and gradient (3.21) assembled in the edge frames, safeguarded as the
+    /// module doc says; `spec` gives ε, the tolerance, the iteration limit,
+    /// the kind of stage and the first Levenberg–Marquardt parameter.
     ///
     /// # Errors
     /// [`CrossfieldError::Cancelled`] when `progress` is cancelled, or a
     /// linear-solver failure of the modified (positive semi-definite) system.
-    #[allow(clippy::too_many_arguments)]
     pub fn minimize(
         &mut self,
         f: &mut [C64],
         params: &EnergyParams,
-        eps: f64,
-        tol: f64,
-        max_iter: usize,
-        stop_on_stall: bool,
-        mu_start: f64,
+        spec: &StageSpec,
         singular_vertices: Option<&SingularVertices>,
         progress: &Progress,
-        history: &mut Vec<NewtonRecord>,
     ) -> Result<StageOutcome, CrossfieldError> {
-        let mass = self.dof_mass();
-        let inv_eps2 = 1.0 / (eps * eps);
-        // Levenberg–Marquardt parameter, in units of 1/ε² (0 = pure Newton).
-        let mut mu = mu_start;
+        let ctx = StageContext { params, mass: self.dof_mass(), inv_eps2: 1.0 / (spec.eps * spec.eps) };
+        let mut state = StageState::new(spec.mu_start);
         let mut trial = f.to_vec();
-        let mut energies: Vec<f64> = Vec::new();
-        let mut residuals: Vec<f64> = Vec::new();
-        // Singular vertices (with their indices) at each iteration (final stage).
-        let mut singular: Vec<Vec<(u32, i32)>> = Vec::new();
-        // Whether the last factorization (of this stage) may precondition CG.
-        let mut precond_ok = false;
-        // Whether the last CG attempt failed: the next step refactors
-        // directly (in the final stage, where each step moves the vortex
-        // cores, CG failed on every step of disk:408 and cost 5 solves each).
-        let mut cg_failed = false;
-        // Whether the last factorization attempts found `H + μM/ε²` indefinite.
-        let mut indefinite = false;
         let mut out = StageOutcome {
             iterations: 0,
             residual: f64::INFINITY,
             energy: f64::INFINITY,
             converged: false,
             plateau: false,
+            history: Vec::new(),
         };
-        for it in 0..=max_iter {
+        for it in 0..=spec.max_iter {
             progress.check()?;
             let asm = self.sys.assemble(self.topo, self.disc, f, params, HessianKind::Exact);
-            let res = self.residual(&asm.grad, eps);
+            let res = self.residual(&asm.grad, spec.eps);
             out.residual = res;
             out.energy = asm.energy;
             let mut record = NewtonRecord {
-                epsilon: eps,
+                epsilon: spec.eps,
                 iteration: it,
                 residual: res,
                 energy: asm.energy,
@@ -390,148 +483,179 @@ impl<'a> NewtonSolver<'a> {
                 krylov_iterations: 0,
                 level: 0,
             };
-            // Intermediate stages only need the vortices roughly in place:
-            // stop when the energy stalls (vortices creeping along a flat valley).
-            let drop = |w: usize| energies[it - w] - asm.energy;
-            let stalled = if stop_on_stall {
-                it >= STALL_WINDOW && drop(STALL_WINDOW) <= STALL_DECREASE * asm.energy.abs()
-            } else {
-                it >= FINAL_STALL_WINDOW
-                    && drop(FINAL_STALL_WINDOW) <= FINAL_STALL_DECREASE * asm.energy.abs()
-                    && residuals[it - FINAL_STALL_WINDOW..]
-                        .iter()
-                        .chain(std::iter::once(&res))
-                        .all(|&r| r <= FINAL_STALL_RESIDUAL)
-            };
-            // Final stage: the singular vertices and their indices have not
-            // changed over the last SETTLE_STEPS steps, on a small residual.
-            let settled = match singular_vertices {
-                Some(sv) if !stop_on_stall => {
-                    singular.push(sv(f));
-                    it >= SETTLE_STEPS
-                        && singular[it - SETTLE_STEPS..].iter().all(|s| *s == singular[it])
-                        && residuals[it - SETTLE_STEPS..]
-                            .iter()
-                            .chain(std::iter::once(&res))
-                            .all(|&r| r <= FINAL_STALL_RESIDUAL)
-                }
-                _ => false,
-            };
-            let stalled = stalled || settled;
-            energies.push(asm.energy);
-            residuals.push(res);
-            // An intermediate stage does not stop on the tolerance at a point
-            // where the last factorization attempt showed negative curvature:
-            // a small residual there is a saddle (the symmetric vortex cluster
-            // before it splits), not a minimizer, and the next stage would
-            // have to split it with smaller, slower cores (disk:408 with
-            // tolerance 10⁻³ stopped at ε = 0.18 with the residual rising
-            // from 9.7·10⁻⁴ and split at ε = 0.044 in 17 iterations).
-            let at_saddle = stop_on_stall && indefinite;
-            if (res <= tol && !at_saddle) || !res.is_finite() || it == max_iter || stalled {
-                out.converged = res <= tol || (stalled && !stop_on_stall);
-                out.plateau = stalled && !stop_on_stall && res > tol;
-                history.push(record);
+            let singular_now = singular_vertices.filter(|_| !spec.stop_on_stall).map(|sv| sv(f));
+            let stalled = state.stalled(spec, it, asm.energy, res, singular_now);
+            if state.ends(spec, it, res, stalled) {
+                out.converged = res <= spec.tol || (stalled && !spec.stop_on_stall);
+                out.plateau = stalled && !spec.stop_on_stall && res > spec.tol;
+                out.history.push(record);
                 break;
             }
-            // Large systems: after a successful step, first try conjugate
-            // gradients on the exact H + μ M preconditioned by the stage's
-            // last factorization (inexact Newton, forcing term √res ≤ 0.1).
-            let mut d: Option<Vec<f64>> = None;
-            if precond_ok && !cg_failed && self.sys.n_dofs() >= self.krylov_min_dofs {
-                let mut values = asm.hess_values.clone();
-                self.shift_values(&mut values, &mass, mu * inv_eps2);
-                let b: Vec<f64> = asm.grad.iter().map(|g| -g).collect();
-                let rtol = res.sqrt().clamp(1e-6, 0.1);
-                let (x, k) = self.pcg(&values, &b, rtol, KRYLOV_MAX_ITER)?;
-                // Failed attempts count too: their solves were paid for.
-                self.n_krylov_iterations += k;
-                record.krylov_iterations = k;
-                cg_failed = x.is_none();
-                if let Some(x) = x {
-                    record.hessian = "exact-cg";
-                    record.shift = mu;
-                    if mu > 0.0 {
-                        self.n_modified_steps += 1;
-                    }
-                    d = Some(x);
-                }
-            }
-            let d = match d {
+            let d = match self.krylov_direction(&ctx, &asm, res, &mut state, &mut record)? {
                 Some(d) => d,
-                None => {
-                    // A step refactored without trying CG re-arms it.
-                    if record.krylov_iterations == 0 {
-                        cg_failed = false;
-                    }
-                    // Exact Hessian + μ M, μ raised ×10 until the factorization succeeds.
-                    let mut factored = false;
-                    indefinite = false;
-                    for _ in 0..MAX_SHIFT_RAISES {
-                        if self.factor(asm.hess_values.clone(), &mass, mu * inv_eps2).is_ok() {
-                            factored = true;
-                            break;
-                        }
-                        indefinite = true;
-                        mu = if mu == 0.0 { MU_FIRST } else { mu * MU_STEP };
-                    }
-                    if !factored {
-                        let m = self.sys.assemble(self.topo, self.disc, f, params, HessianKind::Modified);
-                        self.factor(m.hess_values, &mass, 0.0)?;
-                        record.hessian = "modified";
-                    }
-                    if mu > 0.0 || !factored {
-                        self.n_modified_steps += 1;
-                    }
-                    record.shift = mu;
-                    let mut d: Vec<f64> = asm.grad.iter().map(|g| -g).collect();
-                    self.solve(&mut d)?;
-                    d
-                }
+                None => self.factored_direction(f, &ctx, &asm, &mut state, &mut record)?,
             };
-            let slope: f64 = d.iter().zip(&asm.grad).map(|(a, b)| a * b).sum();
+            let slope = dot(&d, &asm.grad);
             if !(slope < 0.0) {
                 // Not a descent direction (round-off at convergence): stop the stage.
-                history.push(record);
+                out.history.push(record);
                 break;
             }
-            let mut alpha = 1.0;
-            let mut accepted = false;
-            for _ in 0..MAX_HALVINGS {
-                for (i, &e) in self.sys.free_edges.iter().enumerate() {
-                    trial[e as usize] = f[e as usize] + C64::new(alpha * d[2 * i], alpha * d[2 * i + 1]);
-                }
-                let e_trial = total_energy(self.disc, self.topo, &trial, params);
-                if e_trial <= asm.energy + ARMIJO * alpha * slope {
-                    accepted = true;
-                    break;
-                }
-                alpha *= 0.5;
-            }
-            record.step = if accepted { alpha } else { 0.0 };
-            history.push(record);
-            if !accepted {
+            let alpha = self.armijo_step(f, &d, &mut trial, params, asm.energy, slope);
+            record.step = alpha.unwrap_or(0.0);
+            out.history.push(record);
+            let Some(alpha) = alpha else {
                 // No decrease measurable in floating point: the stage is as converged as it gets.
                 break;
-            }
+            };
             for &e in &self.sys.free_edges {
                 f[e as usize] = trial[e as usize];
             }
             out.iterations += 1;
             // The factorization stays a good preconditioner while steps are not cut hard.
-            precond_ok = alpha >= 0.25;
-            // Trust the quadratic model more after a full step, less after a cut one.
-            if alpha == 1.0 {
-                let lower = if mu <= MU_FIRST { 0.0 } else { mu / MU_STEP };
-                if self.curvature_allows(&asm.hess_values, &mass, &d, eps, lower) {
-                    mu = lower;
-                }
-            } else if alpha < 0.25 {
-                mu = if mu == 0.0 { MU_FIRST } else { mu * 10.0 };
-            }
+            state.precond_ok = alpha >= 0.25;
+            self.adapt_mu(&mut state, alpha, &asm.hess_values, &ctx.mass, &d, spec.eps);
         }
         Ok(out)
     }
+
+    /// Large systems ([`Self::krylov_min_dofs`]), after a step that was not
+    /// cut hard: the Newton direction by conjugate gradients on the exact
+    /// `H + μ M/ε²`, preconditioned by the stage's last factorization
+    /// (inexact Newton, forcing term `√res` clamped to [10⁻⁶, 0.1]). `None`
+    /// when CG does not apply or fails: the caller refactors. The CG
+    /// iterations are counted even when the attempt fails: their solves
+    /// were paid for.
+    fn krylov_direction(
+        &mut self,
+        ctx: &StageContext,
+        asm: &Assembled,
+        res: f64,
+        state: &mut StageState,
+        record: &mut NewtonRecord,
+    ) -> Result<Option<Vec<f64>>, CrossfieldError> {
+        if !(state.precond_ok && !state.cg_failed && self.sys.n_dofs() >= self.krylov_min_dofs) {
+            return Ok(None);
+        }
+        let mut values = asm.hess_values.clone();
+        self.shift_values(&mut values, &ctx.mass, state.mu * ctx.inv_eps2);
+        let b: Vec<f64> = asm.grad.iter().map(|g| -g).collect();
+        let rtol = res.sqrt().clamp(1e-6, 0.1);
+        let (x, k) = self.pcg(&values, &b, rtol, KRYLOV_MAX_ITER)?;
+        self.n_krylov_iterations += k;
+        record.krylov_iterations = k;
+        state.cg_failed = x.is_none();
+        if x.is_some() {
+            record.hessian = "exact-cg";
+            record.shift = state.mu;
+            if state.mu > 0.0 {
+                self.n_modified_steps += 1;
+            }
+        }
+        Ok(x)
+    }
+
+    /// The Newton direction `d = −(H + μ M/ε²)⁻¹ g` by a new factorization:
+    /// of the exact Hessian with μ raised until it factors
+    /// ([`Self::factor_raising_mu`]), or, when it never does, of the
+    /// modified (positive semi-definite) Hessian of [`super::energy`].
+    fn factored_direction(
+        &mut self,
+        f: &[C64],
+        ctx: &StageContext,
+        asm: &Assembled,
+        state: &mut StageState,
+        record: &mut NewtonRecord,
+    ) -> Result<Vec<f64>, CrossfieldError> {
+        // A step refactored without trying CG re-arms it.
+        if record.krylov_iterations == 0 {
+            state.cg_failed = false;
+        }
+        let factored = self.factor_raising_mu(&asm.hess_values, ctx, state);
+        if !factored {
+            let m = self.sys.assemble(self.topo, self.disc, f, ctx.params, HessianKind::Modified);
+            self.factor(m.hess_values, &ctx.mass, 0.0)?;
+            record.hessian = "modified";
+        }
+        if state.mu > 0.0 || !factored {
+            self.n_modified_steps += 1;
+        }
+        record.shift = state.mu;
+        let mut d: Vec<f64> = asm.grad.iter().map(|g| -g).collect();
+        self.solve(&mut d)?;
+        Ok(d)
+    }
+
+    /// Factor the exact `H + μ M/ε²`, raising μ ([`raised`]) after each
+    /// failure, at most [`MAX_SHIFT_RAISES`] attempts; whether one
+    /// succeeded. Any failure marks the point indefinite (see
+    /// [`StageState::ends`]).
+    fn factor_raising_mu(&mut self, hess_values: &[f64], ctx: &StageContext, state: &mut StageState) -> bool {
+        state.indefinite = false;
+        for _ in 0..MAX_SHIFT_RAISES {
+            if self.factor(hess_values.to_vec(), &ctx.mass, state.mu * ctx.inv_eps2).is_ok() {
+                return true;
+            }
+            state.indefinite = true;
+            state.mu = raised(state.mu);
+        }
+        false
+    }
+
+    /// Backtracking line search along `d` from `f` (energy `energy`,
+    /// directional derivative `slope`): Armijo, `E(f + α d) ≤ E(f) +
+    /// 10⁻⁴ α gᵀd`, α halved at most [`MAX_HALVINGS`] times. Returns the
+    /// accepted α with `trial = f + α d` on the free edges, or `None` when
+    /// no step decreases the energy measurably.
+    fn armijo_step(
+        &self,
+        f: &[C64],
+        d: &[f64],
+        trial: &mut [C64],
+        params: &EnergyParams,
+        energy: f64,
+        slope: f64,
+    ) -> Option<f64> {
+        let mut alpha = 1.0;
+        for _ in 0..MAX_HALVINGS {
+            for (i, &e) in self.sys.free_edges.iter().enumerate() {
+                trial[e as usize] = f[e as usize] + C64::new(alpha * d[2 * i], alpha * d[2 * i + 1]);
+            }
+            if total_energy(self.disc, self.topo, trial, params) <= energy + ARMIJO * alpha * slope {
+                return Some(alpha);
+            }
+            alpha *= 0.5;
+        }
+        None
+    }
+
+    /// Levenberg–Marquardt update after an accepted step of length `alpha`
+    /// along `d`: trust the quadratic model more after a full step (μ
+    /// lowered ×[`MU_STEP`], to 0 from [`MU_FIRST`], unless
+    /// [`Self::curvature_allows`] shows the lower μ cannot factor), less
+    /// after a strongly cut one (α < 1/4: μ [`raised`]).
+    fn adapt_mu(&self, state: &mut StageState, alpha: f64, hess_values: &[f64], mass: &[f64], d: &[f64], eps: f64) {
+        if alpha == 1.0 {
+            let lower = if state.mu <= MU_FIRST { 0.0 } else { state.mu / MU_STEP };
+            if self.curvature_allows(hess_values, mass, d, eps, lower) {
+                state.mu = lower;
+            }
+        } else if alpha < 0.25 {
+            state.mu = raised(state.mu);
+        }
+    }
+}
+
+/// Solve with the factorization `chol`, in place.
+///
+/// # Errors
+/// [`CrossfieldError::Linalg`] when nothing was factored or sizes differ.
+fn solve_with(chol: &mut Option<SupernodalCholesky>, rhs: &mut [f64]) -> Result<(), CrossfieldError> {
+    let c = chol
+        .as_mut()
+        .ok_or(CrossfieldError::Linalg(crate::linalg::LinalgError::Internal("solve before factorization".into())))?;
+    c.solve_in_place(rhs)?;
+    Ok(())
 }
 
 #[cfg(test)]
@@ -556,20 +680,15 @@ mod tests {
         let mut energy = 0.0;
         for (s, eps) in [0.8, 0.5].into_iter().enumerate() {
             let params = EnergyParams { inv_eps2: 1.0 / (eps * eps), weak_coef: 0.0, weak_edges: &weak };
-            let out = solver
-                .minimize(
-                    &mut f,
-                    &params,
-                    eps,
-                    1e-10,
-                    40,
-                    false,
-                    if s > 0 { 1.0 } else { 0.0 },
-                    None,
-                    &Progress::none(),
-                    &mut history,
-                )
-                .unwrap();
+            let spec = StageSpec {
+                eps,
+                tol: 1e-10,
+                max_iter: 40,
+                stop_on_stall: false,
+                mu_start: if s > 0 { 1.0 } else { 0.0 },
+            };
+            let out = solver.minimize(&mut f, &params, &spec, None, &Progress::none()).unwrap();
+            history.extend_from_slice(&out.history);
             assert!(out.converged && !out.plateau, "{out:?}");
             energy = out.energy;
         }

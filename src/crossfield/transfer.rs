@@ -4,8 +4,8 @@
 //!
 //! Conforming interpolation. The coarse CR field is continuous only at edge
 //! midpoints; interpolated as is, its jumps across coarse edges (of order
-//! `h_c |∇f|`) become steep gradients on the fine mesh: on the 240k-triangle
-//! disk the transferred field had 17 % more energy than the coarse one.
+//! `h_c |∇f|`) become steep gradients on the fine mesh, with markedly more
+//! energy than the coarse field (`docs/decisions.md`).
 //! So the field is first made P1: in each coarse triangle `T` the CR
 //! function's value at corner `i` is `F_i + F_{i+2} − F_{i+1}` (`F_k` the
 //! value of local edge `k`, which goes from corner `k` to `k+1`, in `T`'s

@@ -3,9 +3,9 @@
 //! `αM + τK (+ P)` of [`super::mbo`].
 //!
 //! Why: a sparse Cholesky factorization of a 3D P1 matrix grows like `n²`
-//! (measured with faer on the ball at 1M tets, 179k vertices: 12.7 s per
-//! numeric factorization with a METIS nested-dissection ordering, 132M
-//! nonzeros in `L`; AMD is worse), and MBO needs one per time step. For
+//! (seconds per numeric factorization on a million tetrahedra even with a
+//! nested-dissection ordering: `docs/decisions.md`), and MBO needs one per
+//! time step. For
 //! `M + τK` with `τ` a few squared edge lengths the condition number is
 //! bounded independently of `n` (`1 + O(τ/h²)`), so conjugate gradients
 //! converge in a fixed number of iterations, each one sparse product; the
@@ -20,6 +20,7 @@
 //! over fixed chunks in a fixed order, so results do not depend on the
 //! number of threads.
 
+use crate::linalg::{CgOptions, conjugate_gradients};
 use crate::progress::{Cancelled, Progress};
 use rayon::prelude::*;
 
@@ -100,6 +101,16 @@ impl SymmetricCsr {
         self.n
     }
 
+    /// `z = D⁻¹ r` for 9 interleaved columns (`D` the diagonal): the Jacobi
+    /// preconditioner.
+    pub fn jacobi9(&self, r: &[[f64; 9]], z: &mut [[f64; 9]]) {
+        z.par_iter_mut().zip(r.par_iter()).zip(self.inv_diag.par_iter()).for_each(|((zi, ri), d)| {
+            for c in 0..9 {
+                zi[c] = ri[c] * d;
+            }
+        });
+    }
+
     /// `y = A x` for 9 interleaved columns.
     pub fn apply9(&self, x: &[[f64; 9]], y: &mut [[f64; 9]]) {
         y.par_chunks_mut(CHUNK).enumerate().for_each(|(ci, ys)| {
@@ -119,30 +130,6 @@ impl SymmetricCsr {
     }
 }
 
-/// Per-column dot products `Σ_i a_i[c] b_i[c]`, reduced in a fixed order.
-fn dot9(a: &[[f64; 9]], b: &[[f64; 9]]) -> [f64; 9] {
-    let parts: Vec<[f64; 9]> = a
-        .par_chunks(CHUNK)
-        .zip(b.par_chunks(CHUNK))
-        .map(|(x, y)| {
-            let mut s = [0.0; 9];
-            for (u, v) in x.iter().zip(y) {
-                for c in 0..9 {
-                    s[c] += u[c] * v[c];
-                }
-            }
-            s
-        })
-        .collect();
-    let mut s = [0.0; 9];
-    for p in parts {
-        for c in 0..9 {
-            s[c] += p[c];
-        }
-    }
-    s
-}
-
 /// Outcome of [`pcg9`].
 #[derive(Debug, Clone, Copy)]
 pub struct PcgOutcome {
@@ -153,9 +140,10 @@ pub struct PcgOutcome {
 }
 
 /// Solve `A x_c = b_c` for the 9 interleaved columns by Jacobi-preconditioned
-/// CG from the initial `x`, until `|r_c| ≤ tol |b_c|` for every column or
-/// `max_iter` iterations. `progress` is checked every iteration (one atomic
-/// load beside a sparse product), so a cancel stops the solve at once.
+/// CG ([`conjugate_gradients`] on `[f64; 9]` rows) from the initial `x`,
+/// until `|r_c| ≤ tol |b_c|` for every column or `max_iter` iterations.
+/// `progress` is checked before every product (one atomic load beside a
+/// sparse product), so a cancel stops the solve at once.
 ///
 /// # Errors
 /// [`Cancelled`] when `progress` is cancelled.
@@ -167,67 +155,20 @@ pub fn pcg9(
     max_iter: usize,
     progress: &Progress,
 ) -> Result<PcgOutcome, Cancelled> {
-    let n = a.n;
-    let mut r = vec![[0.0; 9]; n];
-    a.apply9(x, &mut r);
-    r.par_iter_mut().zip(b.par_iter()).for_each(|(ri, bi)| {
-        for c in 0..9 {
-            ri[c] = bi[c] - ri[c];
-        }
-    });
-    let bnorm = dot9(b, b).map(f64::sqrt);
-    let precondition = |r: &[[f64; 9]], z: &mut [[f64; 9]]| {
-        z.par_iter_mut().zip(r.par_iter()).zip(a.inv_diag.par_iter()).for_each(|((zi, ri), d)| {
-            for c in 0..9 {
-                zi[c] = ri[c] * d;
-            }
-        });
-    };
-    let mut z = vec![[0.0; 9]; n];
-    precondition(&r, &mut z);
-    let mut p = z.clone();
-    let mut rz = dot9(&r, &z);
-    let mut ap = vec![[0.0; 9]; n];
-    let mut active = [true; 9];
-    let mut rnorm = dot9(&r, &r).map(f64::sqrt);
-    for c in 0..9 {
-        if rnorm[c] <= tol * bnorm[c] || bnorm[c] == 0.0 {
-            active[c] = false;
-        }
-    }
-    let mut it = 0;
-    while it < max_iter && active.iter().any(|a| *a) {
-        it += 1;
+    let apply = |p: &[[f64; 9]], y: &mut [[f64; 9]]| {
         progress.check()?;
-        a.apply9(&p, &mut ap);
-        let pap = dot9(&p, &ap);
-        let alpha: [f64; 9] = std::array::from_fn(|c| if active[c] && pap[c] > 0.0 { rz[c] / pap[c] } else { 0.0 });
-        x.par_iter_mut().zip(r.par_iter_mut()).zip(p.par_iter().zip(ap.par_iter())).for_each(
-            |((xi, ri), (pi, api))| {
-                for c in 0..9 {
-                    xi[c] += alpha[c] * pi[c];
-                    ri[c] -= alpha[c] * api[c];
-                }
-            },
-        );
-        rnorm = dot9(&r, &r).map(f64::sqrt);
-        for c in 0..9 {
-            if rnorm[c] <= tol * bnorm[c] {
-                active[c] = false;
-            }
-        }
-        precondition(&r, &mut z);
-        let rz_new = dot9(&r, &z);
-        let beta: [f64; 9] = std::array::from_fn(|c| if active[c] && rz[c] != 0.0 { rz_new[c] / rz[c] } else { 0.0 });
-        rz = rz_new;
-        p.par_iter_mut().zip(z.par_iter()).for_each(|(pi, zi)| {
-            for c in 0..9 {
-                pi[c] = zi[c] + beta[c] * pi[c];
-            }
-        });
-    }
-    let rel = (0..9).map(|c| if bnorm[c] > 0.0 { rnorm[c] / bnorm[c] } else { 0.0 }).fold(0.0, f64::max);
-    Ok(PcgOutcome { iterations: it, relative_residual: rel })
+        a.apply9(p, y);
+        Ok(())
+    };
+    let precondition = |r: &[[f64; 9]], z: &mut [[f64; 9]]| {
+        a.jacobi9(r, z);
+        Ok(())
+    };
+    let columns = conjugate_gradients(apply, precondition, b, x, &CgOptions { rel_tol: tol, max_iter })?;
+    Ok(PcgOutcome {
+        iterations: columns.iter().map(|c| c.iterations).max().unwrap_or(0),
+        relative_residual: columns.iter().map(|c| c.relative_residual).fold(0.0, f64::max),
+    })
 }
 
 #[cfg(test)]

@@ -71,113 +71,167 @@ pub fn bicgstab_block(
     rel_tol: f64,
     max_iter: usize,
 ) -> Vec<KrylovReport> {
-    let k = b.len();
-    let n = b.first().map_or(0, Vec::len);
-    let b_norm: Vec<f64> = b.iter().map(|c| dot(c, c).sqrt()).collect();
-    let mut r: Vec<Vec<f64>> = vec![vec![0.0; n]; k];
-    for c in 0..k {
-        sparse_matvec(a, &x[c], &mut r[c]);
-        for i in 0..n {
-            r[c][i] = b[c][i] - r[c][i];
-        }
-    }
-    let r_hat = r.clone();
-    let mut st: Vec<ColumnState> = (0..k)
-        .map(|c| {
-            let res = if b_norm[c] > 0.0 { dot(&r[c], &r[c]).sqrt() / b_norm[c] } else { 0.0 };
-            ColumnState {
-                rho: 1.0,
-                alpha: 1.0,
-                omega: 1.0,
-                res,
-                active: res > rel_tol,
-                iterations: 0,
-                broke_down: false,
-            }
-        })
-        .collect();
-    let (mut v, mut p, mut y, mut t) =
-        (vec![vec![0.0; n]; k], vec![vec![0.0; n]; k], vec![vec![0.0; n]; k], vec![vec![0.0; n]; k]);
+    let mut s = BlockState::new(a, b, x, rel_tol);
     for _ in 0..max_iter {
-        if st.iter().all(|s| !s.active) {
+        if s.st.iter().all(|c| !c.active) {
             break;
         }
-        // Search directions p and preconditioned y = M⁻¹ p.
+        s.set_search_directions();
+        precond(&mut s.y);
+        s.step_along_search_directions(a, x, rel_tol);
+        s.set_stabilization_directions();
+        precond(&mut s.y);
+        s.stabilize(a, x, rel_tol);
+    }
+    s.st.iter()
+        .map(|c| KrylovReport {
+            iterations: c.iterations,
+            relative_residual: c.res,
+            converged: c.res <= rel_tol && !c.broke_down,
+        })
+        .collect()
+}
+
+/// The vectors and scalars of [`bicgstab_block`], one entry per column.
+struct BlockState {
+    /// `‖b‖`.
+    b_norm: Vec<f64>,
+    /// Residual `b − A x`.
+    r: Vec<Vec<f64>>,
+    /// The shadow residual (the initial `r`).
+    r_hat: Vec<Vec<f64>>,
+    /// `A y` of the last search direction.
+    v: Vec<Vec<f64>>,
+    /// Search direction.
+    p: Vec<Vec<f64>>,
+    /// Preconditioned direction (`M⁻¹ p`, then `M⁻¹ r`); zero for frozen columns.
+    y: Vec<Vec<f64>>,
+    /// `A y` of the stabilization direction.
+    t: Vec<Vec<f64>>,
+    st: Vec<ColumnState>,
+}
+
+impl BlockState {
+    /// The start from `x`: `r = r̂ = b − A x`, columns already within
+    /// `rel_tol` (or with `b = 0`) frozen.
+    fn new(a: &SparseMatrix, b: &[Vec<f64>], x: &[Vec<f64>], rel_tol: f64) -> Self {
+        let k = b.len();
+        let n = b.first().map_or(0, Vec::len);
+        let b_norm: Vec<f64> = b.iter().map(|c| dot(c, c).sqrt()).collect();
+        let mut r: Vec<Vec<f64>> = vec![vec![0.0; n]; k];
         for c in 0..k {
-            let s = &mut st[c];
+            sparse_matvec(a, &x[c], &mut r[c]);
+            for i in 0..n {
+                r[c][i] = b[c][i] - r[c][i];
+            }
+        }
+        let r_hat = r.clone();
+        let st: Vec<ColumnState> = (0..k)
+            .map(|c| {
+                let res = if b_norm[c] > 0.0 { dot(&r[c], &r[c]).sqrt() / b_norm[c] } else { 0.0 };
+                ColumnState {
+                    rho: 1.0,
+                    alpha: 1.0,
+                    omega: 1.0,
+                    res,
+                    active: res > rel_tol,
+                    iterations: 0,
+                    broke_down: false,
+                }
+            })
+            .collect();
+        let zeros = || vec![vec![0.0; n]; k];
+        Self { b_norm, r, r_hat, v: zeros(), p: zeros(), y: zeros(), t: zeros(), st }
+    }
+
+    /// Search directions `p = r + β (p − ω v)`, `β = (ρ'/ρ)(α/ω)`,
+    /// `ρ' = r̂ᵀr`, copied into `y` for the preconditioner; a column with
+    /// `ρ' = 0` (or not finite) breaks down.
+    fn set_search_directions(&mut self) {
+        for c in 0..self.st.len() {
+            let s = &mut self.st[c];
             if !s.active {
-                y[c].iter_mut().for_each(|e| *e = 0.0);
+                self.y[c].iter_mut().for_each(|e| *e = 0.0);
                 continue;
             }
-            let rho_new = dot(&r_hat[c], &r[c]);
+            let rho_new = dot(&self.r_hat[c], &self.r[c]);
             if rho_new == 0.0 || !rho_new.is_finite() {
                 s.stop(true);
-                y[c].iter_mut().for_each(|e| *e = 0.0);
+                self.y[c].iter_mut().for_each(|e| *e = 0.0);
                 continue;
             }
             let beta = (rho_new / s.rho) * (s.alpha / s.omega);
             s.rho = rho_new;
-            for i in 0..n {
-                p[c][i] = r[c][i] + beta * (p[c][i] - s.omega * v[c][i]);
+            let (p, r, v) = (&mut self.p[c], &self.r[c], &self.v[c]);
+            for i in 0..p.len() {
+                p[i] = r[i] + beta * (p[i] - s.omega * v[i]);
             }
-            y[c].copy_from_slice(&p[c]);
+            self.y[c].copy_from_slice(&self.p[c]);
         }
-        precond(&mut y);
-        for c in 0..k {
-            let s = &mut st[c];
+    }
+
+    /// With `y = M⁻¹ p`: `v = A y`, `α = ρ / r̂ᵀv`, `r −= α v`, `x += α y`;
+    /// a column within `rel_tol` (or whose residual is not finite) stops.
+    fn step_along_search_directions(&mut self, a: &SparseMatrix, x: &mut [Vec<f64>], rel_tol: f64) {
+        for c in 0..self.st.len() {
+            let s = &mut self.st[c];
             if !s.active {
                 continue;
             }
-            sparse_matvec(a, &y[c], &mut v[c]);
-            s.alpha = s.rho / dot(&r_hat[c], &v[c]);
-            for i in 0..n {
-                r[c][i] -= s.alpha * v[c][i];
-                x[c][i] += s.alpha * y[c][i];
+            sparse_matvec(a, &self.y[c], &mut self.v[c]);
+            s.alpha = s.rho / dot(&self.r_hat[c], &self.v[c]);
+            let (r, v, y) = (&mut self.r[c], &self.v[c], &self.y[c]);
+            for i in 0..r.len() {
+                r[i] -= s.alpha * v[i];
+                x[c][i] += s.alpha * y[i];
             }
             s.iterations += 1;
-            s.res = dot(&r[c], &r[c]).sqrt() / b_norm[c];
+            s.res = dot(r, r).sqrt() / self.b_norm[c];
             if s.res <= rel_tol || !s.res.is_finite() {
                 s.stop(!s.res.is_finite());
             }
         }
-        // Stabilization step on z = M⁻¹ r.
-        for c in 0..k {
-            if st[c].active {
-                y[c].copy_from_slice(&r[c]);
+    }
+
+    /// `y = r` of the active columns (0 for the others), for the
+    /// stabilization step on `z = M⁻¹ r`.
+    fn set_stabilization_directions(&mut self) {
+        for c in 0..self.st.len() {
+            if self.st[c].active {
+                self.y[c].copy_from_slice(&self.r[c]);
             } else {
-                y[c].iter_mut().for_each(|e| *e = 0.0);
+                self.y[c].iter_mut().for_each(|e| *e = 0.0);
             }
         }
-        precond(&mut y);
-        for c in 0..k {
-            let s = &mut st[c];
+    }
+
+    /// With `y = M⁻¹ r`: `t = A y`, `ω = tᵀr / tᵀt`, `x += ω y`,
+    /// `r −= ω t`; `ω = 0` (or not finite) breaks down, a column within
+    /// `rel_tol` stops.
+    fn stabilize(&mut self, a: &SparseMatrix, x: &mut [Vec<f64>], rel_tol: f64) {
+        for c in 0..self.st.len() {
+            let s = &mut self.st[c];
             if !s.active {
                 continue;
             }
-            sparse_matvec(a, &y[c], &mut t[c]);
-            let tt = dot(&t[c], &t[c]);
-            s.omega = if tt > 0.0 { dot(&t[c], &r[c]) / tt } else { 0.0 };
+            sparse_matvec(a, &self.y[c], &mut self.t[c]);
+            let (t, r, y) = (&self.t[c], &mut self.r[c], &self.y[c]);
+            let tt = dot(t, t);
+            s.omega = if tt > 0.0 { dot(t, r) / tt } else { 0.0 };
             if s.omega == 0.0 || !s.omega.is_finite() {
                 s.stop(true);
                 continue;
             }
-            for i in 0..n {
-                x[c][i] += s.omega * y[c][i];
-                r[c][i] -= s.omega * t[c][i];
+            for i in 0..r.len() {
+                x[c][i] += s.omega * y[i];
+                r[i] -= s.omega * t[i];
             }
-            s.res = dot(&r[c], &r[c]).sqrt() / b_norm[c];
+            s.res = dot(r, r).sqrt() / self.b_norm[c];
             if s.res <= rel_tol {
                 s.stop(false);
             }
         }
     }
-    st.iter()
-        .map(|s| KrylovReport {
-            iterations: s.iterations,
-            relative_residual: s.res,
-            converged: s.res <= rel_tol && !s.broke_down,
-        })
-        .collect()
 }
 
 /// Krylov scalars and status of one column of [`bicgstab_block`].
@@ -192,6 +246,7 @@ struct ColumnState {
 }
 
 impl ColumnState {
+    /// Freeze the column; `breakdown` marks it not converged.
     fn stop(&mut self, breakdown: bool) {
         self.active = false;
         self.broke_down |= breakdown;

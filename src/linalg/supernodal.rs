@@ -5,9 +5,9 @@
 //! Why a second Cholesky wrapper: faer's high-level `Llt` picks the
 //! simplicial kernel when its flop-ratio heuristic says so. On the
 //! Crouzeix–Raviart Newton systems of the crossfield (2×2 blocks, ~10
-//! nonzeros per row) it chose the simplicial kernel, which was measured
-//! 10× slower than the supernodal one there (`perf`: 67 % of the run in
-//! `factorize_simplicial_numeric_llt`). The mid-level API lets us force the
+//! nonzeros per row) it chose the simplicial kernel, an order of magnitude
+//! slower than the supernodal one there (`docs/decisions.md`). The
+//! mid-level API lets us force the
 //! supernodal variant; the numeric buffers are kept across refactorizations.
 //!
 //! Ordering: AMD (faer's default) or METIS nested dissection on the graph of
@@ -16,9 +16,9 @@
 //! The permutation is applied once, to the pattern: the analysis and every
 //! numeric factorization see `P A Pᵀ` with the identity ordering, and a
 //! refactorization scatters the new values through a slot map instead of
-//! running faer's general symmetric permutation each time (that was 8 % of
-//! the crossfield's run time on 3k-triangle meshes, and analysing with the
-//! ordering once more cost 0.3 s of the 1.1 s analysis at 300k unknowns).
+//! running faer's general symmetric permutation each time (a visible part of
+//! the crossfield's run time, as was analysing with the ordering once more:
+//! `docs/decisions.md`).
 
 use super::{LinalgError, SparseMatrix};
 use faer::dyn_stack::{MemBuffer, MemStack};
@@ -101,8 +101,7 @@ impl SupernodalCholesky {
         // ... is applied once to the pattern, and the factorization analyses
         // the permuted matrix with the identity ordering: a numeric
         // factorization is then a scatter of the values instead of faer's
-        // general symmetric permutation (8 % of the crossfield's run time on
-        // 3k-triangle meshes).
+        // general symmetric permutation (see the module doc).
         let (permuted, slot) = permuted_pattern(a, fwd.as_deref(), Side::Lower)?;
         // (faer's analysis reads the upper triangle when the ordering is the identity.)
         let (upper, _) = permuted_pattern(a, fwd.as_deref(), Side::Upper)?;

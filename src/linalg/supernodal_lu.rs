@@ -15,8 +15,8 @@
 //! supernodes, row patterns) serves both, and the solve is two triangular
 //! sweeps instead of the tens of preconditioner applications of a Krylov
 //! method (measured in [`crate::atlas::mvc`]). faer's general LU pivots by
-//! rows and orders columns with COLAMD; it was measured 4× slower on these
-//! systems (DEPENDENCIES.md).
+//! rows and orders columns with COLAMD; it was several times slower on these
+//! systems (`docs/decisions.md`).
 //!
 //! Layout. Supernode `s` owns columns `c0..c0+nc` and the off-diagonal rows
 //! `p` (`np` of them, sorted). `lu` holds, like faer's Cholesky values, a

@@ -4,14 +4,13 @@
 //! Why not faer's own solve: it treats each supernode as a dense block and
 //! calls a general matrix product for the off-diagonal part. On the factors
 //! of 2D mesh matrices most supernodes are a few columns wide, so that
-//! call's setup dominated: on the 100k-triangle mean value systems of the
-//! atlas, `perf` put 60 % of the solve in `nano_gemm::copy_millikernel`,
-//! and on the crossfield's Newton systems a solve cost half a
-//! factorization at 300k unknowns. Preconditioned Krylov methods apply the
+//! call's setup dominated the solves of the atlas's mean value systems and
+//! of the crossfield's Newton systems (`docs/decisions.md`). Preconditioned
+//! Krylov methods apply the
 //! factor dozens of times, so the solve, not the factorization, is their
 //! cost. These loops read each stored entry of `L` once per pass and update
-//! all `K` columns with it (measured 1.6–2× faster than faer's for K = 2,
-//! ~25 % for K = 1).
+//! all `K` columns with it (faster than faer's, most for K ≥ 2:
+//! `docs/decisions.md`).
 //!
 //! Layout (faer's): supernode `s` owns columns `start..start+nc` and the
 //! off-diagonal row pattern `p` (`np` rows); its values are a dense
@@ -105,7 +104,7 @@ fn backward<const K: usize>(
         for c in (0..nc).rev() {
             let col = &block[c * ld..(c + 1) * ld];
             // Two partial sums per column: one would be a chain of
-            // dependent additions (measured 1.5× slower).
+            // dependent additions (slower: `docs/decisions.md`).
             let (mut acc, mut acc2) = (x[start + c], [0.0; K]);
             for r in c + 1..nc {
                 let xr = x[start + r];
