@@ -118,6 +118,23 @@ async fn bad_params_name_the_field() {
     assert_eq!(body["field"], "limit");
     let r = s.client.get(s.url("/v1/jobs?cursor=abc")).send().await.unwrap();
     expect_problem(r, 400, "invalid-query").await;
+    // The cursor is exactly the spec's `^[0-9]{0,18}$`: no sign, no spaces, no 19th digit.
+    for bad in ["%2B5", "-1", "%205", "1234567890123456789"] {
+        let r = s.client.get(s.url(&format!("/v1/jobs?cursor={bad}"))).send().await.unwrap();
+        let body = expect_problem(r, 400, "invalid-query").await;
+        assert_eq!(body["field"], "cursor", "{bad}");
+    }
+    for good in ["", "0", "123456789012345678"] {
+        let r = s.client.get(s.url(&format!("/v1/jobs?cursor={good}"))).send().await.unwrap();
+        assert_eq!(r.status(), 200, "cursor `{good}`");
+    }
+    // `?stages=` is names between single commas, verbatim: an empty item or a
+    // padded name is an unknown stage, named by its index.
+    for (bad, field) in [("atlas,,crossfield", "stages[1]"), ("%20atlas", "stages[0]"), ("atlas,", "stages[1]")] {
+        let r = s.submit_raw(&format!("?stages={bad}"), "application/octet-stream", b"solid x".to_vec()).await;
+        let body = expect_problem(r, 422, "invalid-params").await;
+        assert_eq!(body["field"], field, "{bad}");
+    }
 }
 
 pub fn urlenc(s: &str) -> String {
