@@ -45,6 +45,9 @@ fn start_server(dir: &Path) -> Server {
     let log = std::fs::File::create(dir.join("server.log")).unwrap();
     let mut child = Command::new(env!("CARGO_BIN_EXE_meshatlas"))
         .args(["serve", "--addr", "127.0.0.1:0", "--workers", "1", "--threads", "1"])
+        // Keep-alive idle time (the header timeout) longer than any pause of the
+        // client between two requests on a pooled connection: see docs/decisions.md.
+        .args(["--header-timeout-secs", "120"])
         .arg("--data-dir")
         .arg(dir.join("data"))
         .arg("--auth-tokens")
