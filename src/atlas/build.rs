@@ -445,7 +445,7 @@ fn is_planar(mesh: &TriMesh) -> bool {
 /// `max_patch_triangles`. The target length alone does not bound the work: a
 /// large flat face with a finely sampled hole has a tiny mean boundary edge.
 fn refined_size_cap(n_faces: usize, opts: &AtlasOptions) -> usize {
-    (n_faces * opts.refine_max_growth).max(64).min(opts.max_patch_triangles.max(n_faces))
+    n_faces.saturating_mul(opts.refine_max_growth).max(64).min(opts.max_patch_triangles.max(n_faces))
 }
 
 /// Mean length of the patch's boundary edges: the target length of refinement.

@@ -90,6 +90,16 @@ fn bad_query(e: QueryRejection) -> ApiError {
     ApiError::new(FailureKind::InvalidQuery, e.body_text())
 }
 
+/// The names of `?stages=`: empty for none, else the items between single
+/// commas, verbatim (the spec's pattern), so an empty item or one with
+/// spaces is an unknown stage (422 from the parameter check, naming it).
+fn stage_list(stages: &str) -> Vec<Value> {
+    if stages.is_empty() {
+        return Vec::new();
+    }
+    stages.split(',').map(|s| Value::String(s.into())).collect()
+}
+
 /// Builds the params JSON from the multipart part, `?params=` and `?stages=`.
 fn params_json(q: &SubmitQuery, part: Option<&[u8]>) -> Result<Value, ApiError> {
     let given = match (part, q.params.as_deref()) {
@@ -115,8 +125,7 @@ fn params_json(q: &SubmitQuery, part: Option<&[u8]>) -> Result<Value, ApiError> 
         None => json!({}),
     };
     if let Some(stages) = q.stages.as_deref() {
-        let list: Vec<Value> =
-            stages.split(',').map(str::trim).filter(|s| !s.is_empty()).map(|s| Value::String(s.into())).collect();
+        let list = stage_list(stages);
         match value.as_object_mut() {
             Some(obj) if obj.contains_key("stages") => {
                 return Err(ApiError::new(
@@ -197,7 +206,7 @@ pub async fn submit_job(
         upload_path: up.path.clone(),
         input_name,
         input_bytes: up.bytes,
-        format: Some(format.extension().to_string()),
+        format: format.map(|f| f.extension().to_string()),
         params,
         tenant: scope.tenant(),
     };
@@ -244,6 +253,28 @@ pub struct ListQuery {
     pub cursor: Option<String>,
 }
 
+/// Longest cursor: 18 decimal digits always fit an `i64`.
+const MAX_CURSOR_DIGITS: usize = 18;
+
+/// The position of a `?cursor=`: empty or absent is the first page, else
+/// 1–18 ASCII digits (the spec's pattern `^[0-9]{0,18}$`); a sign, spaces or
+/// anything else is rejected rather than read leniently, so the spec says
+/// exactly what is accepted.
+fn parse_cursor(cursor: Option<&str>) -> Result<Option<i64>, ApiError> {
+    let c = match cursor {
+        None | Some("") => return Ok(None),
+        Some(c) => c,
+    };
+    let digits = c.len() <= MAX_CURSOR_DIGITS && c.bytes().all(|b| b.is_ascii_digit());
+    match c.parse::<i64>() {
+        Ok(n) if digits => Ok(Some(n)),
+        _ => {
+            Err(ApiError::new(FailureKind::InvalidQuery, format!("cursor `{c}` is not a cursor from a previous page"))
+                .with("field", "cursor"))
+        }
+    }
+}
+
 /// `GET /v1/jobs`: newest first, cursor pagination.
 pub async fn list_jobs(
     State(st): State<AppState>,
@@ -257,13 +288,7 @@ pub async fn list_jobs(
             ApiError::new(FailureKind::InvalidQuery, format!("limit {limit} is not in 1..=100")).with("field", "limit")
         );
     }
-    let cursor = match q.cursor.as_deref() {
-        None | Some("") => None,
-        Some(c) => Some(c.parse::<i64>().map_err(|_| {
-            ApiError::new(FailureKind::InvalidQuery, format!("cursor `{c}` is not a cursor from a previous page"))
-                .with("field", "cursor")
-        })?),
-    };
+    let cursor = parse_cursor(q.cursor.as_deref())?;
     let page = st.jobs.list(limit, cursor, scope.tenant()).await?;
     Ok(Json(json!({
         "jobs": page.jobs.iter().map(job_json).collect::<Vec<_>>(),

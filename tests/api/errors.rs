@@ -119,6 +119,35 @@ async fn bad_params_name_the_field() {
     assert_eq!(body["field"], "limit");
     let r = s.client.get(s.url("/v1/jobs?cursor=abc")).send().await.unwrap();
     expect_problem(r, 400, "invalid-query").await;
+    // The cursor is exactly the spec's `^[0-9]{0,18}$`: no sign, no spaces, no 19th digit.
+    for bad in ["%2B5", "-1", "%205", "1234567890123456789"] {
+        let r = s.client.get(s.url(&format!("/v1/jobs?cursor={bad}"))).send().await.unwrap();
+        let body = expect_problem(r, 400, "invalid-query").await;
+        assert_eq!(body["field"], "cursor", "{bad}");
+    }
+    for good in ["", "0", "123456789012345678"] {
+        let r = s.client.get(s.url(&format!("/v1/jobs?cursor={good}"))).send().await.unwrap();
+        assert_eq!(r.status(), 200, "cursor `{good}`");
+    }
+    // The two combinations the spec states in prose (JSON Schema cannot span two
+    // parts of a request): parameters given twice, stages given twice.
+    let form = reqwest::multipart::Form::new()
+        .part("file", reqwest::multipart::Part::bytes(b"solid x".to_vec()).file_name("x.stl"))
+        .text("params", "{}");
+    let r = s.client.post(s.url(&format!("/v1/jobs?params={}", urlenc("{}")))).multipart(form).send().await.unwrap();
+    let body = expect_problem(r, 400, "bad-request").await;
+    assert!(body["detail"].as_str().unwrap().contains("parameters given twice"), "{body}");
+    let q = format!("?stages=atlas&params={}", urlenc(r#"{"stages":[]}"#));
+    let r = s.submit_raw(&q, "application/octet-stream", b"solid x".to_vec()).await;
+    let body = expect_problem(r, 400, "bad-request").await;
+    assert!(body["detail"].as_str().unwrap().contains("stages given twice"), "{body}");
+    // `?stages=` is names between single commas, verbatim: an empty item or a
+    // padded name is an unknown stage, named by its index.
+    for (bad, field) in [("atlas,,crossfield", "stages[1]"), ("%20atlas", "stages[0]"), ("atlas,", "stages[1]")] {
+        let r = s.submit_raw(&format!("?stages={bad}"), "application/octet-stream", b"solid x".to_vec()).await;
+        let body = expect_problem(r, 422, "invalid-params").await;
+        assert_eq!(body["field"], field, "{bad}");
+    }
 }
 
 pub fn urlenc(s: &str) -> String {

@@ -132,7 +132,11 @@ async fn reader_failures_and_caps_fail_the_job_with_their_kind() {
     let r = s.submit_raw(&q, "application/octet-stream", fixtures::stl_ascii(&m)).await;
     let body = expect_problem(r, 422, "invalid-params").await;
     assert_eq!(body["field"], "load.wobble");
-    // Content that is no mesh format at all: immediate 415.
-    let r = s.submit_raw("", "application/octet-stream", b"\x00\x01garbage that is no mesh".to_vec()).await;
-    expect_problem(r, 415, "unknown-format").await;
+    // Content that is no mesh format at all, named by nothing: accepted (the spec
+    // cannot say which bytes are a mesh), then the job's reader names the defect.
+    let j = s.submit_ok("", "application/octet-stream", b"\x00\x01garbage that is no mesh".to_vec()).await;
+    assert_eq!(j["input"]["format"], serde_json::Value::Null, "{j:#}");
+    let done = s.wait_final(j["id"].as_str().unwrap()).await;
+    assert_eq!(done["state"], "failed", "{done:#}");
+    assert_eq!(done["error"]["type"], "urn:meshatlas:problem:unknown-format", "{done:#}");
 }

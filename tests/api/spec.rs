@@ -117,3 +117,56 @@ fn option_schemas_list_exactly_the_option_fields() {
         assert!(stages.contains(s.as_str()), "stage {} missing from the spec", s.as_str());
     }
 }
+
+/// Operations by `operationId`, with their path item.
+fn operations(doc: &Yaml) -> Vec<(String, &Yaml, &Yaml)> {
+    let mut ops = Vec::new();
+    for (_, item) in doc["paths"].as_hash().unwrap() {
+        for (k, op) in item.as_hash().unwrap() {
+            if METHODS.contains(&k.as_str().unwrap()) {
+                ops.push((op["operationId"].as_str().unwrap().to_string(), op, item));
+            }
+        }
+    }
+    ops
+}
+
+/// Names of the parameters of an operation (its own and its path item's).
+fn parameter_names(doc: &Yaml, op: &Yaml, item: &Yaml) -> BTreeSet<String> {
+    [&item["parameters"], &op["parameters"]]
+        .into_iter()
+        .filter_map(Yaml::as_vec)
+        .flatten()
+        .map(|p| resolve(doc, p)["name"].as_str().unwrap().to_string())
+        .collect()
+}
+
+#[test]
+fn links_lead_from_a_new_job_to_the_job_its_artifacts_cancel_and_delete() {
+    let doc = spec();
+    let ops = operations(&doc);
+    let mut reached = BTreeSet::new();
+    for (id, op, _) in &ops {
+        for (status, resp) in op["responses"].as_hash().unwrap() {
+            let Some(links) = resolve(&doc, resp)["links"].as_hash() else { continue };
+            for (name, link) in links {
+                let target = link["operationId"].as_str().unwrap();
+                let (_, top, titem) = ops
+                    .iter()
+                    .find(|(o, _, _)| o == target)
+                    .unwrap_or_else(|| panic!("{id} {status:?} link {name:?}: no operation `{target}`"));
+                let declared = parameter_names(&doc, top, titem);
+                for (param, expr) in link["parameters"].as_hash().unwrap() {
+                    let param = param.as_str().unwrap();
+                    assert!(declared.contains(param), "link {name:?} to {target}: no parameter `{param}`");
+                    assert!(expr.as_str().unwrap().starts_with("$response.body#/"), "link {name:?}: {expr:?}");
+                }
+                reached.insert((id.clone(), target.to_string()));
+            }
+        }
+    }
+    for target in ["getJob", "cancelJob", "deleteJob"] {
+        assert!(reached.contains(&("submitJob".into(), target.into())), "no link from submitJob to {target}");
+    }
+    assert!(reached.contains(&("getJob".into(), "getArtifact".into())), "no link from getJob to getArtifact");
+}

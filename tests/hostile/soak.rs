@@ -124,7 +124,7 @@ async fn act(server: &Server, tally: &Mutex<Tally>, action: Action, sphere: &[u8
             // Named for its format: accepted, then the job fails to parse.
             let r = server.submit_bytes("junk.stl", junk.clone(), None).await;
             note_submission(tally, "garbage", r).await;
-            // No name, no format: refused at once (415).
+            // No name, no format: accepted, then the job fails (`unknown-format`).
             let r = server.submit_bytes("junk", junk, None).await;
             note_submission(tally, "garbage without a name", r).await;
             // Parameters naming no stage: refused at once (422).
