@@ -75,10 +75,8 @@ const NONE: u32 = u32::MAX;
 /// `max_edge_length`: no collapse creates an edge longer than this
 /// (`f64::INFINITY` for none). Locked curves keep their fine vertices, so
 /// when they hold many of them the face target alone would over-coarsen the
-/// interior to make up for them (a disk of 62k triangles with 2448 boundary
-/// vertices, asked for 3.9k, came out with 7.5k triangles whose interior
-/// was far coarser than the rest of the level); the length bound keeps the
-/// coarsening uniform.
+/// interior to make up for them (far coarser than the rest of the level:
+/// `docs/decisions.md`); the length bound keeps the coarsening uniform.
 ///
 /// The input must be a valid mesh with `topo` its topology; it should be
 /// manifold and consistently oriented (non-manifold vertices and edges are
@@ -196,10 +194,10 @@ impl Candidate {
     }
 }
 
-/// A 4-ary min-heap of candidates. Why not `BinaryHeap`: with one entry
-/// per vertex the queue of a million-triangle mesh is 8 MB and popping was
-/// a third of the run (cache misses down 19 levels); four children per
-/// node halve the depth and sit next to each other in memory.
+/// A 4-ary min-heap of candidates. Why not `BinaryHeap`: on large meshes
+/// popping was a large part of the run (cache misses down a deep binary
+/// tree, `docs/decisions.md`); four children per node halve the depth and
+/// sit next to each other in memory.
 #[derive(Debug, Default)]
 struct MinHeap4 {
     items: Vec<Candidate>,
