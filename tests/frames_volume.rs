@@ -202,30 +202,30 @@ fn union(meshes: &[TriMesh]) -> TriMesh {
     out
 }
 
-/// 26 bone-like closed parts (elongated ellipsoids of 320 triangles, lengths
-/// 0.3 to 3, slenderness 4 to 12) on a grid 5 apart: 8320 triangles.
+/// 12 bone-like closed parts (elongated ellipsoids of 320 triangles, lengths
+/// 0.6 to 6, slenderness 2 to 6) on a grid 8 apart: 3840 triangles.
 fn bones() -> Vec<TriMesh> {
-    (0..26)
+    (0..12)
         .map(|i| {
-            let len = 0.3 + 2.7 * (i as f64 / 25.0);
-            let slender = 4.0 + (i % 5) as f64 * 2.0;
+            let len = 0.3 + 2.7 * (i as f64 / 11.0);
+            let slender = 2.0 + (i % 5) as f64;
             let r = len / slender;
-            let d = Vec3::new(5.0 * (i % 6) as f64, 5.0 * (i / 6) as f64, 0.0);
+            let d = Vec3::new(8.0 * (i % 4) as f64, 8.0 * (i / 4) as f64, 0.0);
             placed(&fixtures::icosphere(2), Vec3::new(len, r, 0.8 * r), d)
         })
         .collect()
 }
 
-/// A big ball (radius 1), a small ball (0.05), a thin disk (radius 0.8,
-/// thickness 0.04), a thin rod (length 2, radius 0.03) and a small cube
+/// A big ball (radius 1), a small ball (0.05), a thin disk (radius 0.5,
+/// thickness 0.16), a thin rod (length 2, radius 0.1) and a small cube
 /// (edge 0.2), far apart.
 fn mixed_sizes() -> Vec<TriMesh> {
     let ball = fixtures::icosphere(4);
     vec![
         ball.clone(),
         placed(&fixtures::icosphere(2), Vec3::repeat(0.05), Vec3::new(4.0, 0.0, 0.0)),
-        placed(&ball, Vec3::new(0.8, 0.8, 0.02), Vec3::new(0.0, 4.0, 0.0)),
-        placed(&fixtures::icosphere(3), Vec3::new(1.0, 0.03, 0.03), Vec3::new(0.0, 0.0, 4.0)),
+        placed(&ball, Vec3::new(0.5, 0.5, 0.08), Vec3::new(0.0, 4.0, 0.0)),
+        placed(&fixtures::icosphere(3), Vec3::new(1.0, 0.1, 0.1), Vec3::new(0.0, 0.0, 4.0)),
         placed(&fixtures::cube(2), Vec3::repeat(0.1), Vec3::new(-4.0, 0.0, 0.0)),
     ]
 }
@@ -309,9 +309,9 @@ fn a_small_budget_bounds_the_tets_and_names_the_parts_it_cannot_meet() {
     assert!(rep.parts.iter().filter(|p| !p.within_tolerance).all(|p| p.capped));
     assert!(rep.warnings.iter().any(|w| w.contains("tet budget")), "{:?}", rep.warnings);
     // An explicit size applies to every part and is refused above max_tets.
-    let fixed = SizingParams { target_size: Some(0.1), ..sizing };
+    let fixed = SizingParams { target_size: Some(0.2), ..sizing };
     let (_, rep) = enclosed_volume_mesh(&surface, &fixed, warp, &Progress::none()).unwrap();
-    assert!(rep.parts.iter().all(|p| p.target_size == 0.1) && rep.n_tets <= 15_000);
+    assert!(rep.parts.iter().all(|p| p.target_size == 0.2) && rep.n_tets <= 15_000);
     let too_fine = SizingParams { target_size: Some(0.01), ..sizing };
     let err = enclosed_volume_mesh(&surface, &too_fine, warp, &Progress::none()).unwrap_err();
     assert!(matches!(err, FramesError::TooManyTets { .. }), "{err:?}");

@@ -67,7 +67,7 @@ pub struct FramesOptions {
     /// the mesher's memory). Default 2 000 000.
     pub max_tets: usize,
     /// Tet budget of the default sizes (`target_size` null), shared by the
-    /// parts; `max_tets` caps it. Default 300 000 (about 10 s for the
+    /// parts; `max_tets` caps it. Default 400 000 (about 13 s for the
     /// stage, see `docs/decisions.md`).
     pub default_max_tets: usize,
     /// Relative volume error each part's default size aims at
@@ -142,7 +142,7 @@ impl Default for FramesOptions {
         Self {
             target_size: None,
             max_tets: 2_000_000,
-            default_max_tets: 300_000,
+            default_max_tets: 400_000,
             volume_tolerance: 0.01,
             alpha_long: 0.24999,
             alpha_short: 0.41189,

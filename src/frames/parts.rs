@@ -72,9 +72,7 @@ pub fn closed_parts(surface: &TriMesh) -> Vec<SurfacePart> {
     members
         .into_iter()
         .map(|cs| {
-            let triangle_ids: Vec<u32> =
-                cs.iter().flat_map(|&c| faces[c as usize].iter().map(|f| f.0)).collect::<Vec<_>>();
-            let mut triangle_ids = triangle_ids;
+            let mut triangle_ids: Vec<u32> = cs.iter().flat_map(|&c| faces[c as usize].iter().map(|f| f.0)).collect();
             triangle_ids.sort_unstable();
             let part_surface = sub_surface(surface, &triangle_ids);
             let component_per_triangle: Vec<u32> =
@@ -160,7 +158,7 @@ fn nested_enclosed_volume(part: &TriMesh, component_per_triangle: &[u32], compon
         .map(|i| {
             let p = first_vertex[i].unwrap_or_else(Vec3::zeros);
             let depth = containing_components(&bvh, &p, reach, components[i], component_per_triangle, components);
-            if depth % 2 == 0 { volume_of[i].abs() } else { -volume_of[i].abs() }
+            if depth.is_multiple_of(2) { volume_of[i].abs() } else { -volume_of[i].abs() }
         })
         .sum();
     total.max(0.0)
@@ -181,7 +179,7 @@ fn containing_components(
     let mut parity = vec![false; components.len()];
     for attempt in 0..8 {
         let e = attempt as f64 * 0.137;
-        let dir = Vec3::new(1.0, 0.318_309_886 + e, 0.207_879_576 - 0.5 * e).normalize();
+        let dir = Vec3::new(1.0, 0.302_775_638 + e, 0.207_879_576 - 0.5 * e).normalize();
         bvh.segment_hits(p, &(p + dir * reach), &mut hits);
         let others = || hits.iter().filter(|h| component_per_triangle[h.triangle as usize] != own);
         if others().any(|h| h.ambiguous) && attempt < 7 {

@@ -119,11 +119,11 @@ mod tests {
         let e = est(1_000_000, r#"{"stages":["atlas"]}"#);
         assert!(e.peak >= 560 << 20 && e.peak < 1 << 30, "{e:?}");
         // Frames bounded by max_tets whatever the surface for an explicit
-        // size, by the default budget (300k tets) for the default sizes.
+        // size, by the default budget (400k tets) for the default sizes.
         let small = est(100, r#"{"stages":["frames"],"frames":{"max_tets":1000000,"target_size":0.1}}"#);
         assert!(small.peak >= 367 << 20, "{small:?}");
         let default = est(100, r#"{"stages":["frames"]}"#);
-        assert_eq!(default.frames, 300_000 * FRAMES_BYTES_PER_TET + 100 * LOAD_BYTES_PER_TRIANGLE, "{default:?}");
+        assert_eq!(default.frames, 400_000 * FRAMES_BYTES_PER_TET + 100 * LOAD_BYTES_PER_TRIANGLE, "{default:?}");
         let budget = est(100, r#"{"stages":["frames"],"frames":{"default_max_tets":1000000}}"#);
         assert!(budget.peak >= 367 << 20, "{budget:?}");
         let capped = est(100, r#"{"stages":["frames"],"frames":{"max_tets":1000}}"#);
