@@ -181,3 +181,138 @@ fn corpus_closed_surfaces_give_valid_fields() {
         );
     }
 }
+
+/// `mesh` scaled by `s` per axis, then moved by `d`.
+fn placed(mesh: &TriMesh, s: Vec3, d: Vec3) -> TriMesh {
+    let mut m = mesh.clone();
+    for p in &mut m.positions {
+        *p = p.component_mul(&s) + d;
+    }
+    m
+}
+
+/// The meshes as one surface (one vertex and triangle list).
+fn union(meshes: &[TriMesh]) -> TriMesh {
+    let mut out = TriMesh::default();
+    for m in meshes {
+        let n = out.positions.len() as u32;
+        out.positions.extend(&m.positions);
+        out.triangles.extend(m.triangles.iter().map(|t| t.map(|v| VertexId(v.0 + n))));
+    }
+    out
+}
+
+/// 12 bone-like closed parts (elongated ellipsoids of 320 triangles, lengths
+/// 0.6 to 6, slenderness 2 to 6) on a grid 8 apart: 3840 triangles.
+fn bones() -> Vec<TriMesh> {
+    (0..12)
+        .map(|i| {
+            let len = 0.3 + 2.7 * (i as f64 / 11.0);
+            let slender = 2.0 + (i % 5) as f64;
+            let r = len / slender;
+            let d = Vec3::new(8.0 * (i % 4) as f64, 8.0 * (i / 4) as f64, 0.0);
+            placed(&fixtures::icosphere(2), Vec3::new(len, r, 0.8 * r), d)
+        })
+        .collect()
+}
+
+/// A big ball (radius 1), a small ball (0.05), a thin disk (radius 0.5,
+/// thickness 0.16), a thin rod (length 2, radius 0.1) and a small cube
+/// (edge 0.2), far apart.
+fn mixed_sizes() -> Vec<TriMesh> {
+    let ball = fixtures::icosphere(4);
+    vec![
+        ball.clone(),
+        placed(&fixtures::icosphere(2), Vec3::repeat(0.05), Vec3::new(4.0, 0.0, 0.0)),
+        placed(&ball, Vec3::new(0.5, 0.5, 0.08), Vec3::new(0.0, 4.0, 0.0)),
+        placed(&fixtures::icosphere(3), Vec3::new(1.0, 0.1, 0.1), Vec3::new(0.0, 0.0, 4.0)),
+        placed(&fixtures::cube(2), Vec3::repeat(0.1), Vec3::new(-4.0, 0.0, 0.0)),
+    ]
+}
+
+/// Every part's tet volume against the divergence-theorem volume of the
+/// mesh it was made from (computed here, independently of the stage), and
+/// the report's own per-part error; returns the largest |error|.
+fn check_parts(name: &str, pieces: &[TriMesh], rep: &meshatlas::frames::volume::VolumeReport, tol: f64) -> f64 {
+    assert_eq!(rep.parts.len(), pieces.len(), "{name}");
+    let mut worst = 0.0f64;
+    for (p, m) in rep.parts.iter().zip(pieces) {
+        let enclosed = m.signed_volume();
+        assert!((p.enclosed_volume - enclosed).abs() <= 1e-12 * enclosed, "{name} part {}", p.part);
+        let e = (p.volume - enclosed) / enclosed;
+        assert!((e - p.relative_error).abs() < 1e-12, "{name} part {}", p.part);
+        worst = worst.max(e.abs());
+        println!(
+            "{name} part {:2}: V {:.4e} thickness {:.3e} h {:.3e} (wanted {:.3e}) {:6} tets, error {:+.3}%",
+            p.part,
+            enclosed,
+            p.thickness,
+            p.target_size,
+            p.accurate_size,
+            p.n_tets,
+            100.0 * e
+        );
+        assert!(e.abs() < tol, "{name} part {}: volume error {e} at h {}", p.part, p.target_size);
+    }
+    worst
+}
+
+#[test]
+fn every_part_is_within_one_percent_at_the_default_size() {
+    use meshatlas::frames::sizing::SizingParams;
+    use meshatlas::frames::volume::{WarpThresholds, enclosed_volume_mesh};
+    let warp = WarpThresholds { alpha_long: 0.24999, alpha_short: 0.41189 };
+    let o = FramesOptions::default();
+    let sizing = SizingParams {
+        target_size: None,
+        max_tets: o.max_tets,
+        default_max_tets: o.default_max_tets,
+        volume_tolerance: o.volume_tolerance,
+    };
+    for (name, pieces) in [("bones", bones()), ("mixed sizes", mixed_sizes())] {
+        let surface = union(&pieces);
+        // The old default, one lattice at the mean edge length for all:
+        // small and thin parts lose more than 1 %.
+        let (_, old) = tetrahedralize_enclosed_volume(&surface, surface.mean_edge_length(), 0.24999, 0.41189).unwrap();
+        let old_worst = old.parts.iter().map(|p| p.relative_error.abs()).fold(0.0, f64::max);
+        assert!(old_worst > 0.01, "{name}: {old_worst}");
+        assert!(old.n_parts_outside_tolerance > 0 && old.warnings.iter().any(|w| w.contains("volume tolerance")));
+        let (vol, rep) = enclosed_volume_mesh(&surface, &sizing, warp, &Progress::none()).unwrap();
+        assert!(vol.mesh.validate().is_ok(), "{name}");
+        let worst = check_parts(name, &pieces, &rep, 0.01);
+        assert_eq!(rep.n_parts_outside_tolerance, 0, "{name}");
+        assert!(rep.n_tets <= o.default_max_tets, "{name}: {} tets", rep.n_tets);
+        println!(
+            "{name}: {} triangles, old default {} tets worst {:.2}%, new {} tets worst {:.3}%",
+            surface.n_faces(),
+            old.n_tets,
+            100.0 * old_worst,
+            rep.n_tets,
+            100.0 * worst
+        );
+    }
+}
+
+#[test]
+fn a_small_budget_bounds_the_tets_and_names_the_parts_it_cannot_meet() {
+    use meshatlas::frames::sizing::SizingParams;
+    use meshatlas::frames::volume::{WarpThresholds, enclosed_volume_mesh};
+    let warp = WarpThresholds { alpha_long: 0.24999, alpha_short: 0.41189 };
+    let pieces = mixed_sizes();
+    let surface = union(&pieces);
+    let sizing =
+        SizingParams { target_size: None, max_tets: 15_000, default_max_tets: 300_000, volume_tolerance: 0.01 };
+    let (_, rep) = enclosed_volume_mesh(&surface, &sizing, warp, &Progress::none()).unwrap();
+    assert!(rep.n_tets <= 15_000, "{}", rep.n_tets);
+    check_parts("15k budget", &pieces, &rep, 1.0);
+    assert!(rep.spacing_capped && rep.n_parts_outside_tolerance > 0);
+    assert!(rep.parts.iter().filter(|p| !p.within_tolerance).all(|p| p.capped));
+    assert!(rep.warnings.iter().any(|w| w.contains("tet budget")), "{:?}", rep.warnings);
+    // An explicit size applies to every part and is refused above max_tets.
+    let fixed = SizingParams { target_size: Some(0.2), ..sizing };
+    let (_, rep) = enclosed_volume_mesh(&surface, &fixed, warp, &Progress::none()).unwrap();
+    assert!(rep.parts.iter().all(|p| p.target_size == 0.2) && rep.n_tets <= 15_000);
+    let too_fine = SizingParams { target_size: Some(0.01), ..sizing };
+    let err = enclosed_volume_mesh(&surface, &too_fine, warp, &Progress::none()).unwrap_err();
+    assert!(matches!(err, FramesError::TooManyTets { .. }), "{err:?}");
+}

@@ -30,15 +30,16 @@
 
 use super::error::FramesError;
 use super::invariants::{frame_invariants, model_surface_relative_residual};
-use super::mbo::{EnergyRecord, LinearSolverKind, MboParams, VertexConstraint, smooth_octahedral_field};
+use super::mbo::{EnergyRecord, LinearSolverKind, MboParams, MboResult, VertexConstraint, smooth_octahedral_field};
 use super::quaternion::{Mat3, Quat};
 use super::sh4::{nearest_frame, sh4_basis, sh9_from_rotation};
 use super::singular::{SingularEdge, SingularReport, singular_edges, tet_frames};
+use super::sizing::SizingParams;
 use super::stuffing::NO_TRIANGLE;
 use super::su2::C64;
 use super::volume::{
-    VolumeReport, boundary_vertex_normals, boundary_vertices_of_faces, check_closed, dihedral_angle_range,
-    lattice_spacing, tet_boundary_faces, tetrahedralize_enclosed_volume_cancellable,
+    VolumeReport, WarpThresholds, boundary_vertex_normals, boundary_vertices_of_faces, check_closed,
+    dihedral_angle_range, enclosed_volume_mesh, tet_boundary_faces,
 };
 use crate::fem::tet_p1::tet_p1_operators;
 use crate::geom::Vec3;
@@ -53,14 +54,26 @@ use std::time::Instant;
 #[serde(deny_unknown_fields, default)]
 pub struct FramesOptions {
     /// Lattice spacing of the generated volume mesh, model units (interior
-    /// edges are `h` and `0.87 h` long). Default `None`: the mean edge length
-    /// of the surface, enlarged when the estimate `12 V / h³` or the lattice
-    /// exceeds `max_tets`. Ignored for an uploaded tetrahedral mesh.
+    /// edges are `h` and `0.87 h` long), the same for every part of the
+    /// surface. Default `None`: per part (connected closed surface, see
+    /// [`super::parts`]) the finer of the size its thickness needs for
+    /// `volume_tolerance` and its mean edge length, within
+    /// `default_max_tets` ([`super::sizing`]). Ignored for an uploaded
+    /// tetrahedral mesh.
     pub target_size: Option<f64>,
-    /// Largest estimated number of tetrahedra for a generated volume (also
-    /// bounds the lattice over the bounding box to 4 cells per tet, i.e.
+    /// Largest number of tetrahedra for a generated volume, whatever the
+    /// size (the estimate `12 V / h³ + 4 A / h²` and the mesh made; also
+    /// bounds the lattices over the parts' boxes to 4 cells per tet, i.e.
     /// the mesher's memory). Default 2 000 000.
     pub max_tets: usize,
+    /// Tet budget of the default sizes (`target_size` null), shared by the
+    /// parts; `max_tets` caps it. Default 400 000 (about 13 s for the
+    /// stage, see `docs/decisions.md`).
+    pub default_max_tets: usize,
+    /// Relative volume error each part's default size aims at
+    /// (dimensionless); parts beyond it are counted and named in the
+    /// report. Default 0.01.
+    pub volume_tolerance: f64,
     /// Isosurface-stuffing warp threshold on long lattice edges, fraction of
     /// the edge length. Default 0.24999 (Labelle & Shewchuk).
     pub alpha_long: f64,
@@ -129,6 +142,8 @@ impl Default for FramesOptions {
         Self {
             target_size: None,
             max_tets: 2_000_000,
+            default_max_tets: 400_000,
+            volume_tolerance: 0.01,
             alpha_long: 0.24999,
             alpha_short: 0.41189,
             feature_angle_deg: 40.0,
@@ -163,6 +178,12 @@ impl FramesOptions {
         }
         if self.max_tets == 0 {
             return bad("max_tets", "must be positive".into());
+        }
+        if self.default_max_tets == 0 {
+            return bad("default_max_tets", "must be positive".into());
+        }
+        if !(self.volume_tolerance > 0.0 && self.volume_tolerance < 1.0) {
+            return bad("volume_tolerance", format!("must be in (0, 1), got {}", self.volume_tolerance));
         }
         for (name, v) in [("alpha_long", self.alpha_long), ("alpha_short", self.alpha_short)] {
             if !(0.0..0.5).contains(&v) {
@@ -320,75 +341,157 @@ pub fn compute_frame_field(
     let t_total = Instant::now();
     let mut seconds = FramesTimings::default();
 
-    // 1. Volume and boundary normals.
     let t = Instant::now();
-    let vol_progress = progress.sub(0.0, 0.2);
-    let (mesh, vol_report, surface_triangle) = match volume {
-        Some(m) => {
-            if m.tets.is_empty() {
-                return Err(FramesError::EmptyVolume);
-            }
-            m.validate()?;
-            let (min_d, max_d) = dihedral_angle_range(m);
-            let b = boundary_vertices_of_faces(m.n_vertices(), &tet_boundary_faces(m));
-            let rep = VolumeReport {
-                source: "uploaded".into(),
-                n_tets: m.n_tets(),
-                n_vertices: m.n_vertices(),
-                n_boundary_vertices: b.iter().filter(|x| **x).count(),
-                min_dihedral_deg: min_d,
-                max_dihedral_deg: max_d,
-                volume: m.volume(),
-                ..Default::default()
-            };
-            (m.clone(), rep, None)
-        }
-        None => {
-            surface.validate().map_err(FramesError::InvalidSurface)?;
-            check_closed(surface)?;
-            let (h, capped) = lattice_spacing(surface, opts.target_size, opts.max_tets)?;
-            let (stuffed, mut rep) = tetrahedralize_enclosed_volume_cancellable(
-                surface,
-                h,
-                opts.alpha_long,
-                opts.alpha_short,
-                &vol_progress,
-            )?;
-            rep.spacing_capped = capped;
-            (stuffed.mesh, rep, Some(stuffed.surface_triangle_per_vertex))
-        }
-    };
-    vol_progress.set(1.0);
+    let vol = volume_step(surface, volume, opts, &progress.sub(0.0, 0.2))?;
     progress.check()?;
     seconds.volume = t.elapsed().as_secs_f64();
 
-    // 2. Constraints and initial frame.
     let t = Instant::now();
-    let faces = tet_boundary_faces(&mesh);
-    progress.check()?;
-    let boundary = boundary_vertices_of_faces(mesh.n_vertices(), &faces);
-    let constraints =
-        boundary_constraints(&mesh, &faces, &boundary, surface, surface_triangle.as_deref(), opts.feature_angle_deg);
-    progress.check()?;
-    let initial = best_fit_frame(&constraints);
+    let bc = constraint_step(&vol, surface, opts.feature_angle_deg, progress)?;
     seconds.constraints = t.elapsed().as_secs_f64();
 
-    // 3. Operators and field.
     let t = Instant::now();
-    let ops = tet_p1_operators(&mesh);
+    let ops = tet_p1_operators(&vol.mesh);
     progress.check()?;
     seconds.operators = t.elapsed().as_secs_f64();
     progress.sub(0.2, 0.25).set(1.0);
-    let diag = mesh_diagonal(&mesh);
-    let h_mean = mean_tet_edge_length(&mesh);
-    let params = MboParams {
-        tau_initial: if opts.harmonic_start {
-            opts.tau_initial * h_mean * h_mean
-        } else {
-            opts.tau_initial * diag * diag
+    let params = mbo_params(opts, &vol.mesh);
+    let t = Instant::now();
+    let init = vec![bc.initial; vol.mesh.n_vertices()];
+    let field = smooth_octahedral_field(&ops, &bc.constraints, &init, &params, &progress.sub(0.25, 0.9))?;
+    seconds.field = t.elapsed().as_secs_f64();
+    seconds.factor = field.factor_seconds;
+    seconds.solve = field.solve_seconds;
+    seconds.project = field.project_seconds;
+
+    let t = Instant::now();
+    let out = vertex_outputs(&field, &bc.constraints);
+    seconds.invariants = t.elapsed().as_secs_f64();
+    progress.check()?;
+
+    let t = Instant::now();
+    let frames_t = tet_frames(&vol.mesh, &field.sh9_per_vertex, &field.rotation_per_vertex, progress)?;
+    seconds.tet_frames = t.elapsed().as_secs_f64();
+    let t = Instant::now();
+    let (singular, singular_report) =
+        singular_edges(&vol.mesh, &frames_t, &bc.boundary, opts.singular_axis_tolerance_deg, progress)?;
+    let quaternion_per_tet = frames_t.par_iter().map(|r| Quat::from_matrix(r).0).collect();
+    seconds.singular = t.elapsed().as_secs_f64();
+    progress.set(1.0);
+    seconds.total = t_total.elapsed().as_secs_f64();
+
+    let report = frames_report(&vol, &bc, &field, &params, &out, singular_report, seconds);
+    Ok(FrameField {
+        volume: vol.mesh,
+        quaternion_per_vertex: out.quats.iter().map(|q| q.0).collect(),
+        sh9_per_vertex: field.sh9_per_vertex,
+        axes_per_vertex: out.axes,
+        invariants_per_vertex: out.invariants,
+        boundary_per_vertex: bc.boundary,
+        quaternion_per_tet,
+        singular_edges: singular,
+        report,
+    })
+}
+
+/// The tetrahedral mesh of the stage and what is known of its boundary.
+struct VolumeStep {
+    /// The mesh carrying the field.
+    mesh: TetMesh,
+    /// Its report.
+    report: VolumeReport,
+    /// Surface triangle per vertex of a stuffed mesh (`None` when uploaded).
+    surface_triangle: Option<Vec<u32>>,
+}
+
+/// Step 1: the uploaded volume checked and measured, or the enclosed volume
+/// of `surface` stuffed part by part at the sizes of the options.
+fn volume_step(
+    surface: &TriMesh,
+    volume: Option<&TetMesh>,
+    opts: &FramesOptions,
+    progress: &Progress,
+) -> Result<VolumeStep, FramesError> {
+    let step = match volume {
+        Some(m) => uploaded_volume(m)?,
+        None => {
+            surface.validate().map_err(FramesError::InvalidSurface)?;
+            check_closed(surface)?;
+            let sizing = SizingParams {
+                target_size: opts.target_size,
+                max_tets: opts.max_tets,
+                default_max_tets: opts.default_max_tets,
+                volume_tolerance: opts.volume_tolerance,
+            };
+            let warp = WarpThresholds { alpha_long: opts.alpha_long, alpha_short: opts.alpha_short };
+            let (stuffed, report) = enclosed_volume_mesh(surface, &sizing, warp, progress)?;
+            VolumeStep { mesh: stuffed.mesh, report, surface_triangle: Some(stuffed.surface_triangle_per_vertex) }
         }
-        .max(opts.tau_final * h_mean * h_mean),
-        tau_final: opts.tau_final * h_mean * h_mean,
+    };
+    progress.set(1.0);
+    Ok(step)
+}
+
+/// An uploaded tetrahedral mesh, validated, with its quality measures.
+fn uploaded_volume(m: &TetMesh) -> Result<VolumeStep, FramesError> {
+    if m.tets.is_empty() {
+        return Err(FramesError::EmptyVolume);
+    }
+    m.validate()?;
+    let (min_d, max_d) = dihedral_angle_range(m);
+    let b = boundary_vertices_of_faces(m.n_vertices(), &tet_boundary_faces(m));
+    let report = VolumeReport {
+        source: "uploaded".into(),
+        n_tets: m.n_tets(),
+        n_vertices: m.n_vertices(),
+        n_boundary_vertices: b.iter().filter(|x| **x).count(),
+        min_dihedral_deg: min_d,
+        max_dihedral_deg: max_d,
+        volume: m.volume(),
+        ..Default::default()
+    };
+    Ok(VolumeStep { mesh: m.clone(), report, surface_triangle: None })
+}
+
+/// Boundary data and constraints of the field.
+struct ConstraintStep {
+    /// Whether each vertex is on the boundary.
+    boundary: Vec<bool>,
+    /// Constraint per vertex ([`boundary_constraints`]).
+    constraints: Vec<VertexConstraint>,
+    /// The frame that best fits all boundary constraints ([`best_fit_frame`]).
+    initial: Mat3,
+}
+
+/// Step 2: boundary faces and vertices, the constraint per vertex and the
+/// initial frame.
+fn constraint_step(
+    vol: &VolumeStep,
+    surface: &TriMesh,
+    feature_angle_deg: f64,
+    progress: &Progress,
+) -> Result<ConstraintStep, FramesError> {
+    let faces = tet_boundary_faces(&vol.mesh);
+    progress.check()?;
+    let boundary = boundary_vertices_of_faces(vol.mesh.n_vertices(), &faces);
+    let constraints =
+        boundary_constraints(&vol.mesh, &faces, &boundary, surface, vol.surface_triangle.as_deref(), feature_angle_deg);
+    progress.check()?;
+    let initial = best_fit_frame(&constraints);
+    Ok(ConstraintStep { boundary, constraints, initial })
+}
+
+/// The MBO parameters of the options on `mesh`: time steps scaled by its
+/// squared mean edge length (or squared diagonal for the first step
+/// without a harmonic start), and the solver by its vertex count.
+fn mbo_params(opts: &FramesOptions, mesh: &TetMesh) -> MboParams {
+    let diag = mesh_diagonal(mesh);
+    let h_mean = mean_tet_edge_length(mesh);
+    let h2 = h_mean * h_mean;
+    MboParams {
+        tau_initial: if opts.harmonic_start { opts.tau_initial * h2 } else { opts.tau_initial * diag * diag }
+            .max(opts.tau_final * h2),
+        tau_final: opts.tau_final * h2,
         tau_shrink: opts.tau_shrink,
         max_steps_per_level: opts.max_steps_per_level,
         step_tolerance: opts.step_tolerance,
@@ -402,17 +505,26 @@ pub fn compute_frame_field(
             LinearSolverKind::Pcg
         }),
         pcg_tolerance: opts.pcg_tolerance,
-    };
-    let t = Instant::now();
-    let init = vec![initial; mesh.n_vertices()];
-    let field = smooth_octahedral_field(&ops, &constraints, &init, &params, &progress.sub(0.25, 0.9))?;
-    seconds.field = t.elapsed().as_secs_f64();
-    seconds.factor = field.factor_seconds;
-    seconds.solve = field.solve_seconds;
-    seconds.project = field.project_seconds;
+    }
+}
 
-    // 4. Per-vertex outputs.
-    let t = Instant::now();
+/// Per-vertex outputs of the field.
+struct VertexOutputs {
+    /// Frame quaternion per vertex.
+    quats: Vec<Quat>,
+    /// Octahedral invariants (4.23) per vertex.
+    invariants: Vec<[C64; 3]>,
+    /// Largest relative model-surface residual.
+    residual_max: f64,
+    /// Frame axes per vertex.
+    axes: Vec<[Vec3; 3]>,
+    /// Largest angle between a boundary normal and the nearest frame axis, degrees.
+    alignment_max_deg: f64,
+}
+
+/// Step 4: quaternions, invariants (4.23) with their model-surface
+/// residual, axes, and the boundary alignment of the smoothed field.
+fn vertex_outputs(field: &MboResult, constraints: &[VertexConstraint]) -> VertexOutputs {
     let quats: Vec<Quat> = field.rotation_per_vertex.par_iter().map(Quat::from_matrix).collect();
     let invariants: Vec<[C64; 3]> = quats.par_iter().map(frame_invariants).collect();
     let residual_max = invariants.par_iter().map(model_surface_relative_residual).reduce(|| 0.0, f64::max);
@@ -421,38 +533,42 @@ pub fn compute_frame_field(
         .iter()
         .map(|r| [r.column(0).into_owned(), r.column(1).into_owned(), r.column(2).into_owned()])
         .collect();
-    let alignment = constraints
+    let alignment_max_deg = boundary_alignment_max_deg(constraints, &axes);
+    VertexOutputs { quats, invariants, residual_max, axes, alignment_max_deg }
+}
+
+/// Largest angle between a normal constraint and the nearest of its
+/// vertex's axes, degrees (atan2 of `|a × n|` and `|a · n|`: accurate for
+/// tiny angles).
+fn boundary_alignment_max_deg(constraints: &[VertexConstraint], axes: &[[Vec3; 3]]) -> f64 {
+    constraints
         .par_iter()
-        .zip(&axes)
+        .zip(axes)
         .map(|(c, a)| match c {
-            // atan2 of |a × n| and |a · n|: accurate for tiny angles.
             VertexConstraint::Normal(n) => {
                 a.iter().map(|x| x.cross(n).norm().atan2(x.dot(n).abs())).fold(f64::INFINITY, f64::min).to_degrees()
             }
             _ => 0.0,
         })
-        .reduce(|| 0.0, f64::max);
-    seconds.invariants = t.elapsed().as_secs_f64();
-    progress.check()?;
+        .reduce(|| 0.0, f64::max)
+}
 
-    // 5. Singular edges.
-    let t = Instant::now();
-    let frames_t = tet_frames(&mesh, &field.sh9_per_vertex, &field.rotation_per_vertex, progress)?;
-    seconds.tet_frames = t.elapsed().as_secs_f64();
-    let t = Instant::now();
-    let (singular, singular_report) =
-        singular_edges(&mesh, &frames_t, &boundary, opts.singular_axis_tolerance_deg, progress)?;
-    let quaternion_per_tet = frames_t.par_iter().map(|r| Quat::from_matrix(r).0).collect();
-    seconds.singular = t.elapsed().as_secs_f64();
-    progress.set(1.0);
-    seconds.total = t_total.elapsed().as_secs_f64();
-
-    let report = FramesReport {
-        tets: mesh.n_tets(),
-        vertices: mesh.n_vertices(),
-        boundary_vertices: boundary.iter().filter(|b| **b).count(),
-        fixed_vertices: constraints.iter().filter(|c| matches!(c, VertexConstraint::Fixed(_))).count(),
-        volume: vol_report,
+/// The stage report from the results of its steps.
+fn frames_report(
+    vol: &VolumeStep,
+    bc: &ConstraintStep,
+    field: &MboResult,
+    params: &MboParams,
+    out: &VertexOutputs,
+    singular: SingularReport,
+    seconds: FramesTimings,
+) -> FramesReport {
+    FramesReport {
+        tets: vol.mesh.n_tets(),
+        vertices: vol.mesh.n_vertices(),
+        boundary_vertices: bc.boundary.iter().filter(|b| **b).count(),
+        fixed_vertices: bc.constraints.iter().filter(|c| matches!(c, VertexConstraint::Fixed(_))).count(),
+        volume: vol.report.clone(),
         energy_before: field.energy_initial,
         energy_after: field.energy_final,
         iterations: field.history.len(),
@@ -460,22 +576,11 @@ pub fn compute_frame_field(
         linear_solver: Some(params.solver),
         pcg_iterations: field.pcg_iterations,
         energy_history: field.history.clone(),
-        singular: singular_report,
-        model_surface_residual_max: residual_max,
-        boundary_alignment_max_deg: alignment,
+        singular,
+        model_surface_residual_max: out.residual_max,
+        boundary_alignment_max_deg: out.alignment_max_deg,
         seconds,
-    };
-    Ok(FrameField {
-        volume: mesh,
-        quaternion_per_vertex: quats.iter().map(|q| q.0).collect(),
-        sh9_per_vertex: field.sh9_per_vertex,
-        axes_per_vertex: axes,
-        invariants_per_vertex: invariants,
-        boundary_per_vertex: boundary,
-        quaternion_per_tet,
-        singular_edges: singular,
-        report,
-    })
+    }
 }
 
 /// Constraint per vertex: free inside; on the boundary, the normal of the

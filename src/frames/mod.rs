@@ -11,7 +11,9 @@
 //! Palmer et al. 2020, with projection onto the octahedral variety).
 //!
 //! **Volume and field**: [`bvh`] and [`stuffing`] (isosurface stuffing of
-//! the enclosed volume), [`volume`] (checks, size, quality measures),
+//! the enclosed volume), [`parts`] (the surface split into independently
+//! meshed parts), [`sizing`] (the lattice spacing per part from its
+//! thickness and the tet budget), [`volume`] (checks, quality measures),
 //! [`mbo`] (diffusion–projection smoothing of the 9-vector field),
 //! [`singular`] (holonomy of tet frames around edges), [`field`] (the
 //! stage entry point [`compute_frame_field`], its options and report),
@@ -33,10 +35,12 @@ pub mod invariants;
 pub mod inverse;
 pub mod mbo;
 pub mod norm;
+pub mod parts;
 pub mod pcg;
 pub mod quaternion;
 pub mod sh4;
 pub mod singular;
+pub mod sizing;
 pub mod stuffing;
 pub mod su2;
 pub mod volume;

@@ -11,19 +11,23 @@
 //! `O(h²·curvature)` in between; sharp edges and corners of the input are
 //! cut by chords of size `O(h)`.
 //!
-//! Size: the lattice spacing `h` is `target_size` when given, else the
-//! mean edge length of the surface; with `V` the enclosed volume the count
-//! is about `12 V / h³` tetrahedra (12 BCC tets of volume `h³/12` per
-//! cube), and a default size is enlarged until the estimate fits
-//! `max_tets`.
+//! Parts and size: the surface is split into parts ([`super::parts`]: one
+//! connected component, or several whose boxes overlap), each stuffed on its
+//! own lattice at its own spacing ([`super::sizing`]: `target_size` when
+//! given, else from the part's thickness and edge length within a tet
+//! budget), so a small or thin part is not lost at the spacing of a large
+//! one and far-apart parts do not pay for the lattice between them. The
+//! report measures every part's volume against the volume it encloses.
 
 use super::bvh::TriangleBvh;
 use super::error::{FramesError, OpenLoop};
-use super::stuffing::{StuffedVolume, StuffingParams, isosurface_stuffing_cancellable};
+use super::parts::{SurfacePart, closed_parts};
+use super::sizing::{PartSpacing, SizingParams, accurate_spacing, estimated_tets, part_spacings};
+use super::stuffing::{NO_TRIANGLE, StuffedVolume, StuffingParams, isosurface_stuffing_cancellable};
 use crate::fem::tet_p1::tet_p1_gradients;
 use crate::geom::Vec3;
 use crate::mesh::boundary::boundary_pieces;
-use crate::mesh::{TetMesh, Topology, TriMesh};
+use crate::mesh::{TetMesh, Topology, TriMesh, VertexId};
 use crate::progress::Progress;
 use rayon::prelude::*;
 use serde::Serialize;
@@ -33,9 +37,10 @@ use serde::Serialize;
 pub struct VolumeReport {
     /// `"stuffed"` (isosurface stuffing) or `"uploaded"`.
     pub source: String,
-    /// Lattice spacing used (model units); 0 for an uploaded mesh.
+    /// Smallest lattice spacing over the parts (model units); 0 for an
+    /// uploaded mesh.
     pub spacing: f64,
-    /// The default size was enlarged to respect `max_tets`.
+    /// Some part's default size was enlarged to respect the tet budget.
     pub spacing_capped: bool,
     /// Tetrahedra.
     pub n_tets: usize,
@@ -65,8 +70,54 @@ pub struct VolumeReport {
     pub volume_relative_error: f64,
     /// Largest distance from a boundary vertex to the input surface.
     pub max_boundary_vertex_distance: f64,
+    /// Parts meshed separately (0 for an uploaded mesh).
+    pub n_parts: usize,
+    /// Parts whose relative volume error exceeds the volume tolerance.
+    pub n_parts_outside_tolerance: usize,
+    /// The part relative volume error of largest magnitude.
+    pub max_part_relative_error: f64,
+    /// Per part: enclosed and meshed volume, relative error, spacing used
+    /// (the first [`MAX_REPORTED_PARTS`]).
+    pub parts: Vec<PartVolume>,
     /// Things the user should know (e.g. volume lost in thin parts).
     pub warnings: Vec<String>,
+}
+
+/// Most parts listed one by one in [`VolumeReport::parts`] (a scan can hold
+/// thousands of floating shells); the counts and the worst error cover all.
+pub const MAX_REPORTED_PARTS: usize = 1000;
+
+/// The volume of one part ([`super::parts`]) of the surface: what it
+/// encloses and what its tetrahedra hold.
+#[derive(Debug, Clone, Default, Serialize)]
+pub struct PartVolume {
+    /// Index of the part (order of its smallest component).
+    pub part: usize,
+    /// Connected components of the surface it holds (one, unless their
+    /// bounding boxes overlap: nested shells, interlocked rings).
+    pub components: Vec<u32>,
+    /// Triangles of the part.
+    pub n_triangles: usize,
+    /// Enclosed volume of its surface by the divergence theorem (cavities
+    /// subtracted), model units cubed.
+    pub enclosed_volume: f64,
+    /// Volume of its tetrahedra.
+    pub volume: f64,
+    /// `(volume − enclosed_volume) / enclosed_volume` (−1 when no tet fits).
+    pub relative_error: f64,
+    /// Lattice spacing used, model units.
+    pub target_size: f64,
+    /// Spacing the volume tolerance asks for (`tol · t / 2C`,
+    /// [`super::sizing`]).
+    pub accurate_size: f64,
+    /// Characteristic thickness `2 V / A`, model units.
+    pub thickness: f64,
+    /// Tetrahedra.
+    pub n_tets: usize,
+    /// `|relative_error|` is within the volume tolerance.
+    pub within_tolerance: bool,
+    /// A default spacing coarser than wanted because of the tet budget.
+    pub capped: bool,
 }
 
 /// The boundary loops of `surface` if it is open, as an error.
@@ -96,82 +147,63 @@ pub fn check_closed(surface: &TriMesh) -> Result<(), FramesError> {
     })
 }
 
-/// Lattice cells allowed per requested tetrahedron: the lattice covers the
-/// bounding box, which can be much larger than the volume (a thin diagonal
-/// rod, far-apart parts); 4 cells (about 80 bytes of lattice data) per
-/// allowed tet bounds the memory of the mesher.
-pub const LATTICE_CELLS_PER_TET: f64 = 4.0;
-
-/// Most lattice cells whatever `max_tets`: the mesher numbers lattice
-/// vertices (about 2 per cell) with `u32`.
-pub const MAX_LATTICE_CELLS: f64 = (u32::MAX / 4) as f64;
-
-/// The lattice spacing for `surface`: `target_size` if given (error if it
-/// would exceed `max_tets`), else the mean edge length, enlarged until both
-/// the estimated tet count `12 V / h³` fits `max_tets` and the lattice over
-/// the bounding box has at most [`LATTICE_CELLS_PER_TET`]` · max_tets`
-/// cells. Returns `(spacing, capped)`.
-///
-/// # Errors
-/// [`FramesError::InvalidOption`] for a non-positive size,
-/// [`FramesError::TooManyTets`] for an explicit size that is too small.
-pub fn lattice_spacing(
-    surface: &TriMesh,
-    target_size: Option<f64>,
-    max_tets: usize,
-) -> Result<(f64, bool), FramesError> {
-    let volume = surface.signed_volume().abs();
-    let ext = surface.bounding_box().map_or(Vec3::zeros(), |b| b.max - b.min);
-    let tets = |h: f64| 12.0 * volume / (h * h * h);
-    let cells = |h: f64| (ext.x / h + 4.0) * (ext.y / h + 4.0) * (ext.z / h + 4.0);
-    let max_cells = (LATTICE_CELLS_PER_TET * max_tets as f64).min(MAX_LATTICE_CELLS);
-    // Both counts decrease with h: the cap is the largest of the two limits.
-    let fits = |h: f64| tets(h) <= max_tets as f64 && cells(h) <= max_cells;
-    if let Some(h) = target_size {
-        if !(h > 0.0) || !h.is_finite() {
-            return Err(FramesError::InvalidOption {
-                name: "target_size",
-                reason: format!("must be a positive length, got {h}"),
-            });
-        }
-        if !fits(h) {
-            let estimated = tets(h).max(cells(h) / LATTICE_CELLS_PER_TET);
-            return Err(FramesError::TooManyTets {
-                target_size: h,
-                estimated_tets: estimated.min(u64::MAX as f64) as u64,
-                max_tets,
-            });
-        }
-        return Ok((h, false));
-    }
-    let diag = ext.norm();
-    let mut h = surface.mean_edge_length();
-    if !(h > 0.0) {
-        h = diag / 20.0;
-    }
-    if !(h > 0.0) {
-        return Ok((1.0, false));
-    }
-    if fits(h) {
-        return Ok((h, false));
-    }
-    // Smallest h that fits: the volume bound in closed form, then doubling
-    // and bisection for the lattice bound.
-    let mut lo = h;
-    let mut hi = h.max((12.0 * volume / max_tets as f64).cbrt());
-    while !fits(hi) {
-        lo = hi;
-        hi *= 2.0;
-    }
-    for _ in 0..60 {
-        let mid = 0.5 * (lo + hi);
-        if fits(mid) { hi = mid } else { lo = mid }
-    }
-    Ok((hi, true))
+/// Warp thresholds of isosurface stuffing, fractions of the edge length.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct WarpThresholds {
+    /// On long lattice edges (Labelle & Shewchuk: 0.24999).
+    pub alpha_long: f64,
+    /// On short lattice edges (Labelle & Shewchuk: 0.41189).
+    pub alpha_short: f64,
 }
 
-/// Tetrahedralize the volume enclosed by the closed `surface` with lattice
-/// spacing `spacing` and the warp thresholds `alpha_long`, `alpha_short`.
+/// Tetrahedralize the volume enclosed by the closed `surface`, part by part
+/// ([`super::parts`]) at the spacings of [`part_spacings`]. The mesh made
+/// is held to the limit the sizes were chosen for (`max_tets` for an
+/// explicit size, the default budget `min(default_max_tets, max_tets)`
+/// otherwise): when the estimate was low, default sizes are recomputed
+/// with the budget lowered by the overshoot (at most twice, then
+/// `max_tets` is the limit) and an explicit size is refused.
+///
+/// # Errors
+/// As [`part_spacings`] and [`tetrahedralize_parts_cancellable`], and
+/// [`FramesError::TooManyTets`] when the mesh exceeds its limit.
+pub fn enclosed_volume_mesh(
+    surface: &TriMesh,
+    sizing: &SizingParams,
+    warp: WarpThresholds,
+    progress: &Progress,
+) -> Result<(StuffedVolume, VolumeReport), FramesError> {
+    let parts = closed_parts(surface);
+    progress.check()?;
+    let mut sizing = *sizing;
+    let budget = sizing.default_max_tets.min(sizing.max_tets);
+    let mut attempt = 0;
+    loop {
+        let spacings = part_spacings(&parts, &sizing)?;
+        let (stuffed, rep) =
+            tetrahedralize_parts_cancellable(surface, &parts, &spacings, warp, sizing.volume_tolerance, progress)?;
+        let n = stuffed.mesh.n_tets();
+        let retry = sizing.target_size.is_none() && attempt < 2;
+        let limit = if retry { budget } else { sizing.max_tets };
+        if n <= limit {
+            return Ok((stuffed, rep));
+        }
+        if !retry {
+            return Err(FramesError::TooManyTets {
+                target_size: rep.spacing,
+                estimated_tets: n as u64,
+                max_tets: sizing.max_tets,
+            });
+        }
+        attempt += 1;
+        let lowered = sizing.default_max_tets.min(sizing.max_tets) as f64 * 0.95 * budget as f64 / n as f64;
+        sizing.default_max_tets = (lowered as usize).max(1);
+    }
+}
+
+/// Tetrahedralize the volume enclosed by the closed `surface` with the
+/// same lattice spacing `spacing` in every part and the warp thresholds
+/// `alpha_long`, `alpha_short` (no tet limit).
 ///
 /// # Errors
 /// [`FramesError::NoInterior`] when nothing fits inside;
@@ -182,36 +214,135 @@ pub fn tetrahedralize_enclosed_volume(
     alpha_long: f64,
     alpha_short: f64,
 ) -> Result<(StuffedVolume, VolumeReport), FramesError> {
-    tetrahedralize_enclosed_volume_cancellable(surface, spacing, alpha_long, alpha_short, &Progress::none())
+    let parts = closed_parts(surface);
+    let spacings: Vec<PartSpacing> = parts
+        .iter()
+        .map(|p| PartSpacing {
+            spacing,
+            accurate_spacing: accurate_spacing(p, DEFAULT_VOLUME_TOLERANCE),
+            estimated_tets: estimated_tets(p, spacing),
+            capped: false,
+        })
+        .collect();
+    let warp = WarpThresholds { alpha_long, alpha_short };
+    tetrahedralize_parts_cancellable(surface, &parts, &spacings, warp, DEFAULT_VOLUME_TOLERANCE, &Progress::none())
 }
 
-/// [`tetrahedralize_enclosed_volume`], checking `progress` for
-/// cancellation inside the mesher and between the quality measures.
+/// Volume tolerance of [`tetrahedralize_enclosed_volume`]'s report (the
+/// frames option's default).
+pub const DEFAULT_VOLUME_TOLERANCE: f64 = 0.01;
+
+/// Stuff every part of `surface` at its spacing, merge the meshes (parts
+/// are disjoint), and measure the result against the surface, per part and
+/// in total. `surface_triangle_per_vertex` of the result names triangles of
+/// `surface`. Progress is shared by the parts in proportion to their
+/// estimated tets; cancellation is checked inside the mesher.
 ///
 /// # Errors
-/// As [`tetrahedralize_enclosed_volume`], and [`FramesError::Cancelled`].
-pub fn tetrahedralize_enclosed_volume_cancellable(
+/// [`FramesError::NoInterior`] when no tet fits in any part;
+/// [`FramesError::InvalidVolume`] if the result fails validation (a bug);
+/// [`FramesError::Cancelled`].
+pub fn tetrahedralize_parts_cancellable(
     surface: &TriMesh,
-    spacing: f64,
-    alpha_long: f64,
-    alpha_short: f64,
+    parts: &[SurfacePart],
+    spacings: &[PartSpacing],
+    warp: WarpThresholds,
+    volume_tolerance: f64,
     progress: &Progress,
 ) -> Result<(StuffedVolume, VolumeReport), FramesError> {
-    let bvh = TriangleBvh::new(surface);
-    progress.check()?;
-    let stuffed = isosurface_stuffing_cancellable(
-        surface,
-        &bvh,
-        &StuffingParams::new(spacing, alpha_long, alpha_short),
-        progress,
-    )?;
-    let enclosed = surface.signed_volume().abs();
+    let mesher = progress.sub(0.0, 0.8);
+    let total_est: f64 = spacings.iter().map(|s| s.estimated_tets.max(1.0)).sum();
+    let mut done = 0.0;
+    let mut merged: Option<StuffedVolume> = None;
+    let mut part_reports = Vec::with_capacity(parts.len());
+    for (i, (part, s)) in parts.iter().zip(spacings).enumerate() {
+        let w = s.estimated_tets.max(1.0) / total_est;
+        let sub = mesher.sub(done, done + w);
+        done += w;
+        let bvh = TriangleBvh::new(&part.surface);
+        progress.check()?;
+        let params = StuffingParams::new(s.spacing, warp.alpha_long, warp.alpha_short);
+        let mut stuffed = isosurface_stuffing_cancellable(&part.surface, &bvh, &params, &sub)?;
+        part_reports.push(part_volume(i, part, s, &stuffed.mesh, volume_tolerance));
+        for t in &mut stuffed.surface_triangle_per_vertex {
+            if *t != NO_TRIANGLE {
+                *t = part.triangle_ids[*t as usize];
+            }
+        }
+        merged = Some(match merged {
+            None => stuffed,
+            Some(acc) => append_stuffed(acc, stuffed),
+        });
+    }
+    let spacing = spacings.iter().map(|s| s.spacing).fold(f64::INFINITY, f64::min);
+    let enclosed: f64 = parts.iter().map(|p| p.enclosed_volume).sum();
+    let stuffed = merged.unwrap_or_else(|| StuffedVolume {
+        mesh: TetMesh::default(),
+        surface_triangle_per_vertex: Vec::new(),
+        n_warped: 0,
+        n_cut_points: 0,
+        n_steiner: 0,
+        n_cut_fallbacks: 0,
+        n_recast_rows: 0,
+    });
     if stuffed.mesh.tets.is_empty() {
         return Err(FramesError::NoInterior { spacing, volume: enclosed });
     }
+    let report = measured_volume_report(surface, &stuffed, spacing, enclosed, part_reports, progress)?;
+    progress.set(1.0);
+    Ok((stuffed, report))
+}
+
+/// The report entry of part `index` meshed as `mesh` at `spacing`.
+fn part_volume(index: usize, part: &SurfacePart, spacing: &PartSpacing, mesh: &TetMesh, tol: f64) -> PartVolume {
+    let volume = mesh.volume();
+    let v0 = part.enclosed_volume;
+    let relative_error = if v0 > 0.0 { (volume - v0) / v0 } else { 0.0 };
+    PartVolume {
+        part: index,
+        components: part.components.clone(),
+        n_triangles: part.surface.n_faces(),
+        enclosed_volume: v0,
+        volume,
+        relative_error,
+        target_size: spacing.spacing,
+        accurate_size: spacing.accurate_spacing,
+        thickness: part.thickness(),
+        n_tets: mesh.n_tets(),
+        within_tolerance: relative_error.abs() <= tol,
+        capped: spacing.capped,
+    }
+}
+
+/// `a` followed by `b` (vertex ids of `b` shifted), counters added.
+fn append_stuffed(mut a: StuffedVolume, b: StuffedVolume) -> StuffedVolume {
+    let offset = a.mesh.positions.len() as u32;
+    a.mesh.positions.extend(b.mesh.positions);
+    a.mesh.tets.extend(b.mesh.tets.into_iter().map(|t| t.map(|v| VertexId(v.0 + offset))));
+    a.surface_triangle_per_vertex.extend(b.surface_triangle_per_vertex);
+    a.n_warped += b.n_warped;
+    a.n_cut_points += b.n_cut_points;
+    a.n_steiner += b.n_steiner;
+    a.n_cut_fallbacks += b.n_cut_fallbacks;
+    a.n_recast_rows += b.n_recast_rows;
+    a
+}
+
+/// Validate the stuffed mesh and measure it: boundary vertices' distance
+/// to `surface`, dihedral angles, volume against `enclosed`, the parts
+/// (listed up to [`MAX_REPORTED_PARTS`]) and the warnings.
+fn measured_volume_report(
+    surface: &TriMesh,
+    stuffed: &StuffedVolume,
+    spacing: f64,
+    enclosed: f64,
+    parts: Vec<PartVolume>,
+    progress: &Progress,
+) -> Result<VolumeReport, FramesError> {
     progress.check()?;
     stuffed.mesh.validate()?;
     progress.check()?;
+    let bvh = TriangleBvh::new(surface);
     let boundary = boundary_vertices(&stuffed.mesh);
     progress.check()?;
     let max_dist = boundary
@@ -224,18 +355,12 @@ pub fn tetrahedralize_enclosed_volume_cancellable(
     let (min_d, max_d) = dihedral_angle_range(&stuffed.mesh);
     let volume = stuffed.mesh.volume();
     let relative_error = if enclosed > 0.0 { (volume - enclosed) / enclosed } else { 0.0 };
-    let mut warnings = Vec::new();
-    if relative_error < -0.05 {
-        warnings.push(format!(
-            "the volume mesh holds {:.1}% less than the enclosed volume: parts thinner than about two lattice spacings ({:.4e}) are not resolved; use a smaller target_size",
-            -100.0 * relative_error,
-            2.0 * spacing
-        ));
-    }
-    let report = VolumeReport {
+    let warnings = volume_warnings(relative_error, spacing, &parts);
+    let worst = parts.iter().max_by(|a, b| a.relative_error.abs().total_cmp(&b.relative_error.abs()));
+    Ok(VolumeReport {
         source: "stuffed".into(),
         spacing,
-        spacing_capped: false,
+        spacing_capped: parts.iter().any(|p| p.capped),
         n_tets: stuffed.mesh.n_tets(),
         n_vertices: stuffed.mesh.n_vertices(),
         n_boundary_vertices: boundary.iter().filter(|b| **b).count(),
@@ -250,9 +375,44 @@ pub fn tetrahedralize_enclosed_volume_cancellable(
         enclosed_volume: enclosed,
         volume_relative_error: relative_error,
         max_boundary_vertex_distance: max_dist,
+        n_parts: parts.len(),
+        n_parts_outside_tolerance: parts.iter().filter(|p| !p.within_tolerance).count(),
+        max_part_relative_error: worst.map_or(0.0, |p| p.relative_error),
+        parts: parts.into_iter().take(MAX_REPORTED_PARTS).collect(),
         warnings,
-    };
-    Ok((stuffed, report))
+    })
+}
+
+/// The warnings of the volume report: volume lost in thin parts (whole
+/// mesh below −5 %), and parts whose volume misses the tolerance.
+fn volume_warnings(relative_error: f64, spacing: f64, parts: &[PartVolume]) -> Vec<String> {
+    let mut warnings = Vec::new();
+    if relative_error < -0.05 {
+        warnings.push(format!(
+            "the volume mesh holds {:.1}% less than the enclosed volume: parts thinner than about two lattice spacings ({:.4e}) are not resolved; use a smaller target_size",
+            -100.0 * relative_error,
+            2.0 * spacing
+        ));
+    }
+    let off: Vec<&PartVolume> = parts.iter().filter(|p| !p.within_tolerance).collect();
+    if let Some(w) = off.iter().max_by(|a, b| a.relative_error.abs().total_cmp(&b.relative_error.abs())) {
+        let why = if off.iter().any(|p| p.capped) {
+            "the tet budget (frames.default_max_tets, frames.max_tets) does not allow the spacing the tolerance needs"
+        } else {
+            "the spacing is coarser than the tolerance needs (frames.target_size)"
+        };
+        warnings.push(format!(
+            "{} of {} parts differ from their enclosed volume by more than the volume tolerance (worst: part {} with components {:?}, {:+.2}% at spacing {:.4e}, wanted {:.4e}): {why}",
+            off.len(),
+            parts.len(),
+            w.part,
+            &w.components[..w.components.len().min(5)],
+            100.0 * w.relative_error,
+            w.target_size,
+            w.accurate_size
+        ));
+    }
+    warnings
 }
 
 /// Faces of `mesh` that belong to exactly one tet, oriented outward
@@ -407,28 +567,6 @@ mod tests {
                 other => panic!("expected OpenSurface, got {other:?}"),
             }
         }
-    }
-
-    #[test]
-    fn spacing_defaults_and_caps() {
-        let cube = fixtures::cube(4); // edge 2, volume 8
-        let (h, capped) = lattice_spacing(&cube, None, 1_000_000).unwrap();
-        assert!(!capped && (h - cube.mean_edge_length()).abs() < 1e-15);
-        let (h, capped) = lattice_spacing(&cube, None, 100).unwrap();
-        let cells = (2.0 / h + 4.0).powi(3);
-        assert!(capped && 12.0 * 8.0 / h.powi(3) <= 100.0 && cells <= 400.0 * (1.0 + 1e-9));
-        assert!((12.0 * 8.0 / h.powi(3) - 100.0).abs() < 1e-6 || (cells - 400.0).abs() < 1e-6);
-        // Far-apart parts: the lattice over the bounding box is the limit.
-        let mut two = fixtures::icosphere(1);
-        let n = two.positions.len() as u32;
-        two.positions.extend(fixtures::icosphere(1).positions.iter().map(|p| p + Vec3::new(1000.0, 0.0, 0.0)));
-        let tris: Vec<_> = two.triangles.iter().map(|t| t.map(|v| crate::mesh::VertexId(v.0 + n))).collect();
-        two.triangles.extend(tris);
-        let (h, capped) = lattice_spacing(&two, None, 10_000).unwrap();
-        assert!(capped && (1000.0 / h + 4.0) * (2.0 / h + 4.0).powi(2) <= 40_000.0 * (1.0 + 1e-9));
-        assert!(matches!(lattice_spacing(&two, Some(0.05), 10_000), Err(FramesError::TooManyTets { .. })));
-        assert!(matches!(lattice_spacing(&cube, Some(0.01), 1000), Err(FramesError::TooManyTets { .. })));
-        assert!(matches!(lattice_spacing(&cube, Some(-1.0), 1000), Err(FramesError::InvalidOption { .. })));
     }
 
     #[test]

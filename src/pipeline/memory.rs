@@ -63,8 +63,13 @@ pub struct MemoryEstimate {
 
 /// The peak memory of running `params` on an input of `sizes`, with the
 /// parameters' own caps applied (`load.max_triangles`, `frames.max_tets`;
-/// the caller applies the server's caps to `params` first). A generated
-/// volume is bounded by `max_tets`; an uploaded one by its element count.
+/// the caller applies the server's caps to `params` first). An uploaded
+/// volume is bounded by its element count; a generated one by the limit
+/// the frames stage holds the mesh it makes to
+/// ([`crate::frames::volume::enclosed_volume_mesh`]): `max_tets` for an
+/// explicit `target_size` (admission does not know the enclosed volume, so
+/// the size alone bounds nothing), `min(default_max_tets, max_tets)` for
+/// the default sizes.
 pub fn peak_memory_estimate(sizes: &InputSizes, params: &PipelineParams) -> MemoryEstimate {
     let triangles = sizes.n_triangles.min(params.load.max_triangles as u64);
     let runs = |s: StageName| params.stages.contains(&s);
@@ -73,7 +78,7 @@ pub fn peak_memory_estimate(sizes: &InputSizes, params: &PipelineParams) -> Memo
     let atlas = if runs(StageName::Atlas) { per(triangles, ATLAS_BYTES_PER_TRIANGLE) } else { 0 };
     let crossfield = if runs(StageName::Crossfield) { per(triangles, CROSSFIELD_BYTES_PER_TRIANGLE) } else { 0 };
     let frames = if runs(StageName::Frames) {
-        let tets = sizes.n_tets.max(params.frames.max_tets as u64);
+        let tets = sizes.n_tets.max(generated_tets_bound(&params.frames));
         let direct_tets = match params.frames.linear_solver {
             Some(LinearSolverKind::Cholesky) => tets,
             Some(LinearSolverKind::Pcg) => 0,
@@ -85,6 +90,15 @@ pub fn peak_memory_estimate(sizes: &InputSizes, params: &PipelineParams) -> Memo
     };
     let peak = BASE_BYTES.saturating_add(load.max(atlas).max(crossfield).max(frames));
     MemoryEstimate { base: BASE_BYTES, load, atlas, crossfield, frames, peak }
+}
+
+/// Most tetrahedra the frames stage generates with `opts` (see
+/// [`peak_memory_estimate`]).
+pub fn generated_tets_bound(opts: &crate::frames::FramesOptions) -> u64 {
+    match opts.target_size {
+        Some(_) => opts.max_tets as u64,
+        None => opts.default_max_tets.min(opts.max_tets) as u64,
+    }
 }
 
 #[cfg(test)]
@@ -104,9 +118,14 @@ mod tests {
         // Atlas on 1M triangles: at least the measured 560 MiB.
         let e = est(1_000_000, r#"{"stages":["atlas"]}"#);
         assert!(e.peak >= 560 << 20 && e.peak < 1 << 30, "{e:?}");
-        // Frames bounded by max_tets whatever the surface.
-        let small = est(100, r#"{"stages":["frames"],"frames":{"max_tets":1000000}}"#);
+        // Frames bounded by max_tets whatever the surface for an explicit
+        // size, by the default budget (400k tets) for the default sizes.
+        let small = est(100, r#"{"stages":["frames"],"frames":{"max_tets":1000000,"target_size":0.1}}"#);
         assert!(small.peak >= 367 << 20, "{small:?}");
+        let default = est(100, r#"{"stages":["frames"]}"#);
+        assert_eq!(default.frames, 400_000 * FRAMES_BYTES_PER_TET + 100 * LOAD_BYTES_PER_TRIANGLE, "{default:?}");
+        let budget = est(100, r#"{"stages":["frames"],"frames":{"default_max_tets":1000000}}"#);
+        assert!(budget.peak >= 367 << 20, "{budget:?}");
         let capped = est(100, r#"{"stages":["frames"],"frames":{"max_tets":1000}}"#);
         assert!(capped.peak < 32 << 20, "{capped:?}");
         // The largest stage, not the sum; the triangle cap applies.
