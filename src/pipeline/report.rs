@@ -75,11 +75,11 @@ pub struct PipelineReport {
 #[derive(Debug, Clone)]
 pub enum StageReport {
     /// The atlas stage.
-    Atlas(AtlasReport),
+    Atlas(Box<AtlasReport>),
     /// The crossfield stage.
-    Crossfield(CrossfieldReport),
+    Crossfield(Box<CrossfieldReport>),
     /// The frames stage.
-    Frames(FramesReport),
+    Frames(Box<FramesReport>),
 }
 
 /// The reports of the stages that ran, serialized as an object keyed by
@@ -102,9 +102,9 @@ impl StageReports {
     /// Stores `report` in its stage's slot (replacing an earlier one).
     pub fn insert(&mut self, report: StageReport) {
         match report {
-            StageReport::Atlas(r) => self.atlas = Some(r),
-            StageReport::Crossfield(r) => self.crossfield = Some(r),
-            StageReport::Frames(r) => self.frames = Some(r),
+            StageReport::Atlas(r) => self.atlas = Some(*r),
+            StageReport::Crossfield(r) => self.crossfield = Some(*r),
+            StageReport::Frames(r) => self.frames = Some(*r),
         }
     }
 
@@ -227,8 +227,8 @@ mod tests {
     fn stage_reports_serialize_as_an_object_keyed_by_the_stages_that_ran() {
         let mut stages = StageReports::default();
         assert!(stages.is_empty());
-        stages.insert(StageReport::Frames(FramesReport { tets: 7, ..FramesReport::default() }));
-        stages.insert(StageReport::Atlas(AtlasReport { n_patches: 3, ..AtlasReport::default() }));
+        stages.insert(StageReport::Frames(Box::new(FramesReport { tets: 7, ..FramesReport::default() })));
+        stages.insert(StageReport::Atlas(Box::new(AtlasReport { n_patches: 3, ..AtlasReport::default() })));
         let v = serde_json::to_value(&stages).unwrap();
         // The shape stored jobs and clients know: `{name: report}` for the stages run.
         let mut expected = serde_json::Map::new();
@@ -256,13 +256,13 @@ mod tests {
             ..RepairReport::default()
         };
         let mut stages = StageReports::default();
-        stages.insert(StageReport::Crossfield(CrossfieldReport {
+        stages.insert(StageReport::Crossfield(Box::new(CrossfieldReport {
             n_singularities: 8,
             index_sum: 2.0,
             euler_characteristic: 2,
             converged: true,
             ..CrossfieldReport::default()
-        }));
+        })));
         let lines = report(repair, stages).summary_lines();
         let repair_line = lines.iter().find(|l| l.starts_with("repair ")).unwrap();
         assert!(repair_line.contains("welded 5 vertices, removed 8 triangles, flipped 6"), "{repair_line}");

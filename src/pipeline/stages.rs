@@ -71,7 +71,7 @@ pub fn run_atlas(
     );
     let artifacts = vec![msh?, vtu?, uv?];
     let write_seconds = write_start.elapsed().as_secs_f64();
-    let report = StageReport::Atlas(atlas.report);
+    let report = StageReport::Atlas(Box::new(atlas.report));
     products.features = Some(atlas.features);
     Ok(StageOutput { report, artifacts, write_seconds })
 }
@@ -103,7 +103,7 @@ pub fn run_crossfield(
         write_artifact(out_dir, "crossfield.msh", |w| write_crossfield_msh_as(&field, surface, w, &params.output))?,
     ];
     let write_seconds = write_start.elapsed().as_secs_f64();
-    let report = StageReport::Crossfield(field.report);
+    let report = StageReport::Crossfield(Box::new(field.report));
     Ok(StageOutput { report, artifacts, write_seconds })
 }
 
@@ -132,6 +132,6 @@ pub fn run_frames(
         write_artifact(out_dir, "frames_singular.vtu", |w| write_singular_edges_vtu(&field, w))?,
     ];
     let write_seconds = write_start.elapsed().as_secs_f64();
-    let report = StageReport::Frames(field.report);
+    let report = StageReport::Frames(Box::new(field.report));
     Ok(StageOutput { report, artifacts, write_seconds })
 }
