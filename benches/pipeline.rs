@@ -1,6 +1,8 @@
 //! Bench harness (issue 2 §7): runs the meshatlas pipeline (release build)
 //! on the files given on the command line, one child process per file, and
-//! prints per-step wall time and peak memory; with `--gmsh` it runs Gmsh's
+//! prints per-step wall time (each stage's `<stage>.write` and the final
+//! `write` included), the bytes of every artifact written with their total,
+//! and peak memory; with `--gmsh` it runs Gmsh's
 //! Python API on the same file (`benches/gmsh_reference.py`) and prints the
 //! time ratio per step.
 //!
@@ -57,6 +59,10 @@ struct Run {
     n_triangles: Option<u64>,
     wall: f64,
     failure: Option<String>,
+    /// `(name, bytes)` of every artifact the run wrote.
+    artifacts: Vec<(String, u64)>,
+    /// The pipeline's own `total_seconds`.
+    total_seconds: Option<f64>,
 }
 
 fn run_meshatlas(file: &Path, stages: &str, out: &Path) -> Run {
@@ -83,8 +89,14 @@ fn run_meshatlas(file: &Path, stages: &str, out: &Path) -> Run {
         .as_array()
         .map(|ts| ts.iter().filter_map(|t| Some((t["step"].as_str()?.to_string(), t["seconds"].as_f64()?))).collect())
         .unwrap_or_default();
+    let artifacts = report["artifacts"]
+        .as_array()
+        .map(|a| a.iter().filter_map(|x| Some((x["name"].as_str()?.to_string(), x["bytes"].as_u64()?))).collect())
+        .unwrap_or_default();
     Run {
         steps,
+        artifacts,
+        total_seconds: report["total_seconds"].as_f64(),
         peak_rss_kb: report["peak_rss_kb"].as_u64(),
         n_triangles: report["input"]["n_triangles"].as_u64(),
         wall,
@@ -149,6 +161,16 @@ fn generate(spec: &str) -> Result<PathBuf, String> {
     Ok(path)
 }
 
+/// One row per artifact (`bytes NAME`, in MB) and their total.
+fn print_artifacts(name: &str, tris: &str, artifacts: &[(String, u64)]) {
+    let mb = |b: u64| format!("{:.2} MB", b as f64 / 1e6);
+    for (file, bytes) in artifacts {
+        println!("{name:<28} {tris:>10} {:<30} {:>14}", format!("bytes {file}"), mb(*bytes));
+    }
+    let total: u64 = artifacts.iter().map(|(_, b)| b).sum();
+    println!("{name:<28} {tris:>10} {:<30} {:>14}", "bytes (all artifacts)", mb(total));
+}
+
 fn mib(kb: Option<u64>) -> String {
     kb.map(|k| format!("{:.1}", k as f64 / 1024.0)).unwrap_or_else(|| "-".into())
 }
@@ -195,6 +217,10 @@ fn main() {
             };
             println!("{name:<28} {tris:>10} {step:<12} {:>12} {:>12} {ratio:>8}", fmt(a), fmt(b));
         }
+        if let Some(t) = ours.total_seconds {
+            println!("{name:<28} {tris:>10} {:<12} {t:>12.4} {:>12} {:>8}", "total", "-", "");
+        }
+        print_artifacts(&name, &tris, &ours.artifacts);
         println!(
             "{name:<28} {tris:>10} {:<12} {:>12.4} {:>12} {:>8}",
             "wall",

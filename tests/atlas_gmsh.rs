@@ -9,7 +9,8 @@
 mod common;
 
 use common::{path_str, python, scratch};
-use meshatlas::atlas::{Atlas, AtlasOptions, build_atlas, write_atlas_msh, write_atlas_uv_vtu, write_atlas_vtu};
+use meshatlas::atlas::{Atlas, AtlasOptions, build_atlas, write_atlas_msh_as, write_atlas_uv_vtu, write_atlas_vtu};
+use meshatlas::io::msh_output::OutputOptions;
 use meshatlas::mesh::{TriMesh, fixtures};
 use meshatlas::progress::Progress;
 use std::fs::File;
@@ -52,8 +53,8 @@ for p in sys.argv[1:]:
 print(json.dumps(out))
 "#;
 
-fn write_all(atlas: &Atlas, dir: &Path) {
-    write_atlas_msh(atlas, BufWriter::new(File::create(dir.join("atlas.msh")).unwrap())).unwrap();
+fn write_all(atlas: &Atlas, dir: &Path, opts: &OutputOptions) {
+    write_atlas_msh_as(atlas, BufWriter::new(File::create(dir.join("atlas.msh")).unwrap()), opts).unwrap();
     write_atlas_vtu(atlas, BufWriter::new(File::create(dir.join("atlas.vtu")).unwrap())).unwrap();
     write_atlas_uv_vtu(atlas, BufWriter::new(File::create(dir.join("atlas_uv.vtu")).unwrap())).unwrap();
 }
@@ -61,10 +62,25 @@ fn write_all(atlas: &Atlas, dir: &Path) {
 /// Build, write and remesh; `on_surface` is the distance of a point to the
 /// exact surface. Returns the atlas for further checks.
 fn remesh_check(name: &str, mesh: &TriMesh, h: f64, on_surface: impl Fn([f64; 3]) -> f64, tol: f64) -> Atlas {
+    remesh_check_as(name, mesh, h, on_surface, tol, &OutputOptions::default())
+}
+
+/// [`remesh_check`] with `atlas.msh` written as `opts` say (binary or ASCII).
+fn remesh_check_as(
+    name: &str,
+    mesh: &TriMesh,
+    h: f64,
+    on_surface: impl Fn([f64; 3]) -> f64,
+    tol: f64,
+    opts: &OutputOptions,
+) -> Atlas {
     let atlas = build_atlas(mesh, &AtlasOptions::default(), &Progress::none()).unwrap();
     let dir = scratch("atlas_gmsh", name);
-    write_all(&atlas, &dir);
+    write_all(&atlas, &dir, opts);
     let msh = dir.join("atlas.msh");
+    let head = std::fs::read(&msh).unwrap()[..20].to_vec();
+    let binary = opts.msh_binary == Some(true);
+    assert_eq!(head.starts_with(b"$MeshFormat\n4.1 1 8\n"), binary, "{name}: binary header");
     let r = python(REMESH, &[path_str(&msh), &h.to_string()]);
     assert_eq!(r["entities"]["2"].as_u64().unwrap() as usize, atlas.patches.len(), "{name}: surfaces");
     assert_eq!(r["entities"]["1"].as_u64().unwrap() as usize, atlas.curves.len(), "{name}: curves");
@@ -137,4 +153,31 @@ fn cube_atlas_is_remeshed_by_gmsh() {
 fn annulus_atlas_with_a_hole_is_remeshed_by_gmsh() {
     let m = fixtures::annulus(0.35, 1.0, 48, 8);
     remesh_check("annulus", &m, 0.08, |p| p[2].abs(), 1e-9);
+}
+
+#[test]
+fn binary_atlas_msh_is_read_and_remeshed_by_gmsh() {
+    // Gmsh reads `$Parametrizations` of a binary file (size_t counts, int
+    // tags and triangle indices, double coordinates): the same checks as the
+    // ASCII files above pass on the binary variant.
+    let binary = OutputOptions { msh_binary: Some(true), ..OutputOptions::default() };
+    let m = fixtures::cube(6);
+    let a = remesh_check_as(
+        "cube_binary",
+        &m,
+        0.3,
+        |p| (p.iter().fold(0.0f64, |a, x| a.max(x.abs())) - 1.0).abs(),
+        1e-9,
+        &binary,
+    );
+    assert_eq!((a.patches.len(), a.curves.len(), a.corners.len()), (6, 12, 8));
+    let m = fixtures::icosphere(4);
+    remesh_check_as(
+        "sphere_binary",
+        &m,
+        0.15,
+        |p| ((p[0] * p[0] + p[1] * p[1] + p[2] * p[2]).sqrt() - 1.0).abs(),
+        0.01,
+        &binary,
+    );
 }

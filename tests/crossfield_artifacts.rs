@@ -78,8 +78,8 @@ fn crossfield_msh_in_2_2_and_binary_opens_in_meshio_and_gmsh() {
     let field = compute_crossfield(&mesh, &topo, &aligned, &CrossfieldOptions::default(), &Progress::none()).unwrap();
     let dir = common::scratch("crossfield_artifacts", "msh_variants");
     let variants = [
-        ("v22.msh", OutputOptions { msh_version: MshVersion::V22, msh_binary: false }, "2.2"),
-        ("v41_binary.msh", OutputOptions { msh_version: MshVersion::V41, msh_binary: true }, "4.1"),
+        ("v22.msh", OutputOptions { msh_version: MshVersion::V22, msh_binary: Some(false) }, "2.2"),
+        ("v41_binary.msh", OutputOptions { msh_version: MshVersion::V41, msh_binary: Some(true) }, "4.1"),
     ];
     let script = r#"
 f = sys.argv[1]

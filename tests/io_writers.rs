@@ -228,6 +228,38 @@ fn msh41_surface_ascii_and_binary_read_by_meshio_and_gmsh() {
 }
 
 #[test]
+fn default_msh_is_ascii_below_the_threshold_and_binary_from_it_on_and_both_are_read() {
+    use meshatlas::io::msh_output::{AUTO_BINARY_MIN_ELEMENTS, OutputOptions, write_msh};
+    let dir = scratch("msh41_threshold");
+    // cube(n) has 12 n² triangles: 99372 and 101568 lie on either side.
+    for (n, binary) in [(91, false), (92, true)] {
+        let mesh = fixtures::cube(n);
+        assert_eq!(mesh.n_faces() >= AUTO_BINARY_MIN_ELEMENTS, binary);
+        let mut model = MshModel::from_surface(&mesh);
+        model.element_data.push(DataView::contiguous(
+            "area",
+            1,
+            (0..mesh.n_faces()).map(|f| mesh.face_area(FaceId::new(f))).collect(),
+            1,
+        ));
+        let file = dir.join(format!("cube_{n}.msh"));
+        write_msh(std::fs::File::create(&file).unwrap(), &model, &OutputOptions::default()).unwrap();
+        let head = std::fs::read(&file).unwrap()[..20].to_vec();
+        let expected: &[u8] = if binary { b"$MeshFormat\n4.1 1 8\n" } else { b"$MeshFormat\n4.1 0 8\n" };
+        assert!(head.starts_with(expected), "cube({n}): {:?}", String::from_utf8_lossy(&head));
+        let tris: Vec<u64> = mesh.triangles.iter().flatten().map(|v| u64::from(v.0)).collect();
+        check_meshio(
+            &file,
+            &mesh.positions,
+            &[("triangle", tris)],
+            &[],
+            &[("area", model.element_data[0].values.clone())],
+        );
+        check_gmsh_plain(&file, &model, 2);
+    }
+}
+
+#[test]
 fn msh41_volume_read_by_meshio_and_gmsh() {
     let dir = scratch("msh41_volume");
     let mesh = tet_block(3);

@@ -23,5 +23,5 @@ pub mod verify;
 pub use build::{Atlas, AtlasCurve, AtlasPatch, build_atlas};
 pub use error::AtlasError;
 pub use options::AtlasOptions;
-pub use output::{write_atlas_msh, write_atlas_uv_vtu, write_atlas_vtu};
+pub use output::{write_atlas_msh, write_atlas_msh_as, write_atlas_uv_vtu, write_atlas_vtu};
 pub use report::AtlasReport;

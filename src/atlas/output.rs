@@ -1,6 +1,6 @@
 //! Artifacts of the atlas stage: `atlas.msh`, `atlas.vtu`, `atlas_uv.vtu`.
 //!
-//! - `atlas.msh` (MSH 4.1): point entities at the corners, curve entities
+//! - `atlas.msh` (MSH 4.1, binary for large atlases): point entities at the corners, curve entities
 //!   for the atlas curves (feature curves and cuts, each from corner to
 //!   corner), one surface entity per patch bounded by its signed curves;
 //!   nodes and triangles classified on them; and, in `$Parametrizations`,
@@ -16,6 +16,7 @@
 
 use super::build::Atlas;
 use crate::geom::Vec3;
+use crate::io::msh_output::OutputOptions;
 use crate::io::msh41::discrete::{DiscreteModelBuilder, PatchUv};
 use crate::io::msh41::write::{Msh41Options, write_msh41};
 use crate::io::vtu::{CellBlock, DataArray, VtuMesh, VtuOptions, write_vtu};
@@ -23,11 +24,24 @@ use crate::io::write_error::WriteError;
 use crate::mesh::VertexId;
 use std::io::Write;
 
-/// Write `atlas.msh`: entities, classified mesh and parametrizations.
+/// Write `atlas.msh` with the default output options (ASCII below
+/// [`crate::io::msh_output::AUTO_BINARY_MIN_ELEMENTS`] triangles, binary
+/// from there on).
 ///
 /// # Errors
 /// [`WriteError`] on an I/O failure or an inconsistent atlas (never expected).
 pub fn write_atlas_msh(atlas: &Atlas, w: impl Write) -> Result<(), WriteError> {
+    write_atlas_msh_as(atlas, w, &OutputOptions::default())
+}
+
+/// Write `atlas.msh`: entities, classified mesh and parametrizations, as
+/// MSH 4.1 (whatever `opts.msh_version` says), binary or ASCII as
+/// [`OutputOptions::binary_msh41`] decides. Gmsh reads both variants with
+/// their `$Parametrizations`.
+///
+/// # Errors
+/// [`WriteError`] on an I/O failure or an inconsistent atlas (never expected).
+pub fn write_atlas_msh_as(atlas: &Atlas, w: impl Write, opts: &OutputOptions) -> Result<(), WriteError> {
     let mut builder = DiscreteModelBuilder::new(&atlas.mesh);
     for &c in &atlas.corners {
         builder.add_corner(c)?;
@@ -50,7 +64,8 @@ pub fn write_atlas_msh(atlas: &Atlas, w: impl Write) -> Result<(), WriteError> {
         let uv = PatchUv { vertices: p.vertices.clone(), uv: p.uv.clone(), curvature };
         builder.add_patch(p.faces.clone(), boundary, Some(uv))?;
     }
-    write_msh41(w, &builder.build()?, &Msh41Options::default())
+    let model = builder.build()?;
+    write_msh41(w, &model, &Msh41Options { binary: opts.binary_msh41(&model) })
 }
 
 /// Write `atlas.vtu`: triangles with patch and σ2/σ1, feature edges as lines,

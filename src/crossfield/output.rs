@@ -101,7 +101,9 @@ pub fn write_crossfield_vtu(field: &Crossfield, mesh: &TriMesh, w: impl Write) -
     write_vtu(w, &vtu, &VtuOptions::default())
 }
 
-/// Write `crossfield.msh` (MSH 4.1, ASCII) for `field` on `mesh`.
+/// Write `crossfield.msh` with the default output options (MSH 4.1, ASCII
+/// below [`crate::io::msh_output::AUTO_BINARY_MIN_ELEMENTS`] triangles,
+/// binary from there on) for `field` on `mesh`.
 ///
 /// # Errors
 /// [`WriteError`] when the sizes do not match or on I/O failure.

@@ -14,8 +14,8 @@ use tower::ServiceExt;
 use super::AppState;
 use super::auth::Scope;
 use super::error::ApiError;
-use super::range;
 use super::upload::{self, SubmitQuery};
+use super::{encoding, range};
 use crate::failure::FailureKind;
 use crate::jobs::{JobId, JobRecord, JobsError, NewJob, model::rfc3339};
 use crate::pipeline::parse_params;
@@ -349,6 +349,19 @@ async fn serve_file(path: &std::path::Path, req: &Parts, range: Option<&str>) ->
     Ok(served.map(Body::new))
 }
 
+/// The identity bytes of the artifact at `path`, honouring one `Range`.
+async fn serve_identity(path: &std::path::Path, req: &Parts) -> Result<Response, ApiError> {
+    let range = range::range_to_serve(&req.headers);
+    let mut resp = serve_file(path, req, range.as_deref()).await?;
+    if range.is_some() && !range::if_range_holds(&req.headers, resp.headers()) {
+        resp = serve_file(path, req, None).await?;
+    }
+    if resp.status() == StatusCode::RANGE_NOT_SATISFIABLE {
+        return Ok(range_not_satisfiable(range.as_deref().unwrap_or(""), &resp));
+    }
+    Ok(resp)
+}
+
 /// The 416 problem for a range past the end, keeping `Content-Range: bytes */LEN`.
 fn range_not_satisfiable(range: &str, served: &Response) -> Response {
     let content_range = served.headers().get(header::CONTENT_RANGE).cloned();
@@ -364,9 +377,26 @@ fn range_not_satisfiable(range: &str, served: &Response) -> Response {
     resp
 }
 
+/// The gzip representation of the artifact at `path` (made on first use,
+/// see [`encoding`]), served with `Content-Encoding: gzip`.
+async fn serve_gzip(path: &std::path::Path, req: &Parts) -> Result<Response, ApiError> {
+    let src = path.to_path_buf();
+    let gz = tokio::task::spawn_blocking(move || encoding::ensure_gzip(&src))
+        .await
+        .map_err(ApiError::internal)?
+        .map_err(|e| ApiError::internal(format!("cannot gzip {}: {e}", path.display())))?;
+    let mut resp = serve_file(&gz, req, None).await?;
+    if resp.status().is_success() || resp.status() == StatusCode::NOT_MODIFIED {
+        resp.headers_mut().insert(header::CONTENT_ENCODING, HeaderValue::from_static("gzip"));
+    }
+    Ok(resp)
+}
+
 /// `GET /v1/jobs/{id}/artifacts/{name}`: the file, with one byte range at
 /// most (RFC 9110: unknown units, invalid or multiple ranges give the whole
-/// file; a stale `If-Range` too).
+/// file; a stale `If-Range` too). Without `Range`, a client whose
+/// `Accept-Encoding` allows gzip gets the gzip representation; see
+/// [`encoding`].
 pub async fn get_artifact(
     State(st): State<AppState>,
     scope: Scope,
@@ -375,14 +405,9 @@ pub async fn get_artifact(
 ) -> Result<Response, ApiError> {
     let (path, art) = st.jobs.artifact(visible_id(&st, &scope, &id).await?, name).await?;
     let (req, _) = req.into_parts();
-    let range = range::range_to_serve(&req.headers);
-    let mut resp = serve_file(&path, &req, range.as_deref()).await?;
-    if range.is_some() && !range::if_range_holds(&req.headers, resp.headers()) {
-        resp = serve_file(&path, &req, None).await?;
-    }
-    if resp.status() == StatusCode::RANGE_NOT_SATISFIABLE {
-        return Ok(range_not_satisfiable(range.as_deref().unwrap_or(""), &resp));
-    }
+    let gzip = !req.headers.contains_key(header::RANGE) && encoding::accepts_gzip(&req.headers);
+    let mut resp = if gzip { serve_gzip(&path, &req).await? } else { serve_identity(&path, &req).await? };
+    resp.headers_mut().insert(header::VARY, HeaderValue::from_static("accept-encoding"));
     if resp.status().is_success() {
         if let Ok(v) = HeaderValue::from_str(&art.media_type) {
             resp.headers_mut().insert(header::CONTENT_TYPE, v);

@@ -13,6 +13,7 @@
 //! This is the only module that knows axum.
 
 pub mod auth;
+pub mod encoding;
 pub mod error;
 pub mod handlers;
 pub mod idle_body;

@@ -17,9 +17,11 @@
 //!
 //! Writing: MSH 4.1 ([`msh41::write`]), MSH 2.2 ([`msh22::write`]), VTU
 //! ([`vtu`]) and binary STL ([`stl_write`]); errors are [`WriteError`].
+//! [`gzip`] compresses a finished file (the downloads' gzip encoding).
 
 pub mod error;
 pub mod format;
+pub mod gzip;
 pub mod load;
 pub mod msh22;
 pub mod msh41;

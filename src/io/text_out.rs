@@ -54,6 +54,43 @@ pub(crate) fn flush_if_full(w: &mut impl std::io::Write, buf: &mut Vec<u8>, limi
 /// Buffer size at which the writers hand bytes to the underlying writer.
 pub(crate) const CHUNK: usize = 1 << 16;
 
+/// Rows formatted by one task of [`write_rows_par`]: large enough that a
+/// task's overhead is negligible, small enough that every core gets work.
+pub(crate) const ROWS_PER_CHUNK: usize = 4096;
+
+/// Chunks formatted before they are written (bounds the memory held at once
+/// to about this many chunks, a few MB).
+const CHUNKS_PER_ROUND: usize = 16;
+
+/// Writes rows `0..n_rows` to `w`: `format_row(buf, i)` appends row `i` to
+/// `buf`. Rows are formatted in parallel in chunks of [`ROWS_PER_CHUNK`] and
+/// written in order, so the bytes do not depend on the number of threads
+/// (each row's text depends only on `i`). Chunk buffers are reused between
+/// rounds; nothing is allocated per number.
+pub(crate) fn write_rows_par<W: std::io::Write + ?Sized>(
+    w: &mut W,
+    n_rows: usize,
+    format_row: impl Fn(&mut Vec<u8>, usize) + Sync,
+) -> std::io::Result<()> {
+    use rayon::prelude::*;
+    let n_chunks = n_rows.div_ceil(ROWS_PER_CHUNK);
+    let mut bufs: Vec<Vec<u8>> = vec![Vec::new(); CHUNKS_PER_ROUND.min(n_chunks)];
+    for first in (0..n_chunks).step_by(CHUNKS_PER_ROUND) {
+        let n = CHUNKS_PER_ROUND.min(n_chunks - first);
+        bufs[..n].par_iter_mut().enumerate().for_each(|(k, buf)| {
+            buf.clear();
+            let lo = (first + k) * ROWS_PER_CHUNK;
+            for i in lo..(lo + ROWS_PER_CHUNK).min(n_rows) {
+                format_row(buf, i);
+            }
+        });
+        for buf in &bufs[..n] {
+            w.write_all(buf)?;
+        }
+    }
+    Ok(())
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;

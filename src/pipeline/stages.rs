@@ -9,7 +9,7 @@ use std::io::BufWriter;
 use std::path::Path;
 
 use crate::atlas::features::{Features, detect_features};
-use crate::atlas::{AtlasError, build_atlas, write_atlas_msh, write_atlas_uv_vtu, write_atlas_vtu};
+use crate::atlas::{AtlasError, build_atlas, write_atlas_msh_as, write_atlas_uv_vtu, write_atlas_vtu};
 use crate::crossfield::{
     CrossfieldError, compute_crossfield, write_crossfield_msh_as, write_crossfield_vtu, write_singularities_json,
 };
@@ -61,7 +61,7 @@ pub fn run_atlas(
     // The MSH file (with the parametrizations) takes as long as both VTU
     // files together: write it beside them on the pool.
     let (msh, (vtu, uv)) = rayon::join(
-        || write_artifact(out_dir, "atlas.msh", |w| write_atlas_msh(&atlas, w)),
+        || write_artifact(out_dir, "atlas.msh", |w| write_atlas_msh_as(&atlas, w, &params.output)),
         || {
             rayon::join(
                 || write_artifact(out_dir, "atlas.vtu", |w| write_atlas_vtu(&atlas, w)),

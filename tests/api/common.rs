@@ -30,7 +30,9 @@ impl Server {
         let addr = listener.local_addr().unwrap();
         let state = AppState { jobs: jobs.clone(), limits: Arc::new(limits), auth: None };
         tokio::spawn(meshatlas::http::serve(listener, state, std::future::pending()));
-        Server { base: format!("http://{addr}"), client: reqwest::Client::new(), jobs, dir }
+        // Identity bytes: no automatic `Accept-Encoding: gzip` (the gzip encoding is tested in `tests/hostile`).
+        let client = reqwest::Client::builder().no_gzip().build().unwrap();
+        Server { base: format!("http://{addr}"), client, jobs, dir }
     }
 
     pub fn url(&self, path: &str) -> String {

@@ -83,7 +83,7 @@ impl Server {
             addr,
             data_dir: data_dir.to_path_buf(),
             _tmp: None,
-            client: reqwest::Client::new(),
+            client: identity_client(),
             log_path,
         })
     }
@@ -290,8 +290,15 @@ impl Server {
             addr,
             data_dir: dir,
             _tmp: Some(tmp),
-            client: reqwest::Client::new(),
+            client: identity_client(),
             log_path,
         }
     }
+}
+
+/// A reqwest client that asks for identity bytes (no automatic
+/// `Accept-Encoding: gzip`), so headers and ranges are those of the files;
+/// `downloads.rs` tests the gzip encoding with clients of its own.
+pub fn identity_client() -> reqwest::Client {
+    reqwest::Client::builder().no_gzip().build().unwrap()
 }

@@ -9,6 +9,7 @@
 mod common;
 
 mod auth;
+mod downloads;
 mod http_limits;
 mod memory;
 mod readers;

@@ -10,8 +10,12 @@
 //! `f64` (Gmsh writes `%.16g`, which can lose the last bit).
 //!
 //! The model is validated in full ([`MshModel::validate`]) before the first
-//! byte is written. Output is buffered internally in 64 KiB chunks: pass the
-//! `File` itself, no `BufWriter` needed.
+//! byte is written. The long runs of rows (node tags and coordinates,
+//! elements, parametrization points and triangles, data entries) are
+//! formatted in parallel in fixed-size chunks and written in order
+//! ([`write_rows_par`]), so the bytes do not depend on the number of
+//! threads; the rest is buffered in 64 KiB chunks. Pass the `File` itself, no
+//! `BufWriter` needed.
 //!
 //! Binary layout (MSH 4.1, `size_t` = 8 bytes, little endian): counts and
 //! node/element tags are `size_t`, entity tags, dimensions, types and
@@ -20,7 +24,7 @@
 //! per entry, as Gmsh and meshio read them.
 
 use super::model::{DataView, ElementBlock, ModelIndex, MshModel, NodeBlock};
-use crate::io::text_out::{CHUNK, push_f64, push_i64, push_u64};
+use crate::io::text_out::{CHUNK, push_f64, push_i64, push_u64, write_rows_par};
 use crate::io::write_error::WriteError;
 use crate::mesh::{TetMesh, TriMesh};
 use serde::{Deserialize, Serialize};
@@ -57,7 +61,7 @@ pub fn write_msh41(w: impl Write, model: &MshModel, opts: &Msh41Options) -> Resu
             });
         }
     }
-    let mut out = Out::new(w, opts.binary);
+    let mut out = Out::new(w, Enc { binary: opts.binary });
     out.text(if opts.binary { "$MeshFormat\n4.1 1 8\n" } else { "$MeshFormat\n4.1 0 8\n" });
     if opts.binary {
         out.buf.extend_from_slice(&1i32.to_le_bytes());
@@ -94,17 +98,72 @@ pub fn write_volume_msh41(w: impl Write, mesh: &TetMesh) -> Result<(), WriteErro
     write_msh41(w, &MshModel::from_volume(mesh), &Msh41Options::default())
 }
 
-/// Token emitter: ASCII tokens followed by a space (a line end replaces the
-/// last one), or little-endian binary words.
+/// Token encoder: ASCII tokens followed by a space (a line end replaces the
+/// last one), or little-endian binary words. `Copy`, so that the parallel
+/// row formatters each use it on their own buffer.
+#[derive(Debug, Clone, Copy)]
+struct Enc {
+    binary: bool,
+}
+
+impl Enc {
+    /// A `size_t` count or node/element tag.
+    #[inline]
+    fn size(self, buf: &mut Vec<u8>, x: u64) {
+        if self.binary {
+            buf.extend_from_slice(&x.to_le_bytes());
+        } else {
+            push_u64(buf, x);
+            buf.push(b' ');
+        }
+    }
+
+    /// An `int` (entity tag, dimension, type, physical tag).
+    #[inline]
+    fn int(self, buf: &mut Vec<u8>, x: i32) {
+        if self.binary {
+            buf.extend_from_slice(&x.to_le_bytes());
+        } else {
+            push_i64(buf, i64::from(x));
+            buf.push(b' ');
+        }
+    }
+
+    /// A `double`.
+    #[inline]
+    fn real(self, buf: &mut Vec<u8>, x: f64) {
+        if self.binary {
+            buf.extend_from_slice(&x.to_le_bytes());
+        } else {
+            push_f64(buf, x);
+            buf.push(b' ');
+        }
+    }
+
+    /// End an ASCII line (no-op in binary): the last space becomes `\n`.
+    #[inline]
+    fn eol(self, buf: &mut Vec<u8>) {
+        if !self.binary {
+            if buf.last() == Some(&b' ') {
+                buf.pop();
+            }
+            buf.push(b'\n');
+        }
+    }
+}
+
+/// Token emitter into `w` through a 64 KiB buffer, with [`Out::rows`] for
+/// the long runs of rows.
 struct Out<W: Write> {
     w: W,
     buf: Vec<u8>,
+    enc: Enc,
     binary: bool,
 }
 
 impl<W: Write> Out<W> {
-    fn new(w: W, binary: bool) -> Self {
-        Self { w, buf: Vec::with_capacity(CHUNK + 4096), binary }
+    fn new(w: W, enc: Enc) -> Self {
+        Self { w, buf: Vec::with_capacity(CHUNK + 4096), enc, binary: enc.binary }
     }
 
     /// Raw text, in both modes (section markers, data headers).
@@ -114,43 +173,35 @@ impl<W: Write> Out<W> {
 
     /// A `size_t` count or node/element tag.
     fn size(&mut self, x: u64) {
-        if self.binary {
-            self.buf.extend_from_slice(&x.to_le_bytes());
-        } else {
-            push_u64(&mut self.buf, x);
-            self.buf.push(b' ');
-        }
+        self.enc.size(&mut self.buf, x);
     }
 
     /// An `int` (entity tag, dimension, type, physical tag).
     fn int(&mut self, x: i32) {
-        if self.binary {
-            self.buf.extend_from_slice(&x.to_le_bytes());
-        } else {
-            push_i64(&mut self.buf, i64::from(x));
-            self.buf.push(b' ');
-        }
+        self.enc.int(&mut self.buf, x);
     }
 
     /// A `double`.
     fn real(&mut self, x: f64) {
-        if self.binary {
-            self.buf.extend_from_slice(&x.to_le_bytes());
-        } else {
-            push_f64(&mut self.buf, x);
-            self.buf.push(b' ');
-        }
+        self.enc.real(&mut self.buf, x);
     }
 
     /// End an ASCII line (no-op in binary); flushes a full buffer.
     fn line(&mut self) -> std::io::Result<()> {
-        if !self.binary {
-            if self.buf.last() == Some(&b' ') {
-                self.buf.pop();
-            }
-            self.buf.push(b'\n');
-        }
+        self.enc.eol(&mut self.buf);
         self.flush_if_full()
+    }
+
+    /// Rows `0..n`, each written by `row(enc, buf, i)` and ended by a line
+    /// break (ASCII), formatted in parallel ([`write_rows_par`]).
+    fn rows(&mut self, n: usize, row: impl Fn(Enc, &mut Vec<u8>, usize) + Sync) -> std::io::Result<()> {
+        self.w.write_all(&self.buf)?;
+        self.buf.clear();
+        let enc = self.enc;
+        write_rows_par(&mut self.w, n, |buf, i| {
+            row(enc, buf, i);
+            enc.eol(buf);
+        })
     }
 
     fn flush_if_full(&mut self) -> std::io::Result<()> {
@@ -267,23 +318,19 @@ fn write_node_block<W: Write>(out: &mut Out<W>, block: &NodeBlock) -> Result<(),
     let order = sorting_order(&block.tags);
     let at = |k: usize| order.as_ref().map_or(k, |o| o[k]);
     let n = block.tags.len();
-    for k in 0..n {
-        out.size(block.tags[at(k)]);
-        out.line()?;
-    }
+    out.rows(n, |e, buf, k| e.size(buf, block.tags[at(k)]))?;
     let dim = usize::from(block.entity_dim);
-    for k in 0..n {
+    out.rows(n, |e, buf, k| {
         let i = at(k);
         for c in block.positions[i].iter() {
-            out.real(*c);
+            e.real(buf, *c);
         }
         if let Some(p) = &block.parametric {
             for &u in &p[dim * i..dim * (i + 1)] {
-                out.real(u);
+                e.real(buf, u);
             }
         }
-        out.line()?;
-    }
+    })?;
     Ok(())
 }
 
@@ -313,14 +360,13 @@ fn write_element_block<W: Write>(out: &mut Out<W>, block: &ElementBlock) -> Resu
     out.line()?;
     let k = block.element_type.n_nodes();
     let order = sorting_order(&block.tags);
-    for j in 0..block.tags.len() {
+    out.rows(block.tags.len(), |e, buf, j| {
         let i = order.as_ref().map_or(j, |o| o[j]);
-        out.size(block.tags[i]);
+        e.size(buf, block.tags[i]);
         for &n in &block.nodes[k * i..k * (i + 1)] {
-            out.size(n);
+            e.size(buf, n);
         }
-        out.line()?;
-    }
+    })?;
     Ok(())
 }
 
@@ -340,13 +386,12 @@ fn write_parametrizations<W: Write>(out: &mut Out<W>, model: &MshModel) -> Resul
         out.line()?;
         out.size(p.points.len() as u64);
         out.line()?;
-        for (k, x) in p.points.iter().enumerate() {
-            for c in x.iter() {
-                out.real(*c);
+        out.rows(p.points.len(), |e, buf, k| {
+            for c in p.points[k].iter() {
+                e.real(buf, *c);
             }
-            out.real(k as f64);
-            out.line()?;
-        }
+            e.real(buf, k as f64);
+        })?;
     }
     for p in &model.surface_parametrizations {
         out.int(p.surface);
@@ -354,25 +399,23 @@ fn write_parametrizations<W: Write>(out: &mut Out<W>, model: &MshModel) -> Resul
         out.size(p.positions.len() as u64);
         out.size(p.triangles.len() as u64);
         out.line()?;
-        for (i, x) in p.positions.iter().enumerate() {
-            for c in x.iter() {
-                out.real(*c);
+        out.rows(p.positions.len(), |e, buf, i| {
+            for c in p.positions[i].iter() {
+                e.real(buf, *c);
             }
-            out.real(p.uv[i].x);
-            out.real(p.uv[i].y);
+            e.real(buf, p.uv[i].x);
+            e.real(buf, p.uv[i].y);
             match p.curvature.get(i) {
-                Some([kmax, kmin]) => kmax.iter().chain(kmin.iter()).for_each(|c| out.real(*c)),
-                None => (0..6).for_each(|_| out.real(0.0)),
+                Some([kmax, kmin]) => kmax.iter().chain(kmin.iter()).for_each(|c| e.real(buf, *c)),
+                None => (0..6).for_each(|_| e.real(buf, 0.0)),
             }
-            out.line()?;
-        }
-        for t in &p.triangles {
-            for &i in t {
+        })?;
+        out.rows(p.triangles.len(), |e, buf, k| {
+            for &i in &p.triangles[k] {
                 // Validated to be < positions.len() <= i32::MAX.
-                out.int(i as i32);
+                e.int(buf, i as i32);
             }
-            out.line()?;
-        }
+        })?;
     }
     out.end("Parametrizations")?;
     Ok(())
@@ -387,18 +430,18 @@ fn write_view<W: Write>(out: &mut Out<W>, section: &str, view: &DataView) -> Res
     header.push_str(&format!("\n4\n{}\n{}\n{}\n0\n", view.step, view.n_components, view.tags.len()));
     out.text(&header);
     let nc = view.n_components;
-    for (i, &tag) in view.tags.iter().enumerate() {
-        if out.binary {
+    out.rows(view.tags.len(), |e, buf, i| {
+        let tag = view.tags[i];
+        if e.binary {
             // Checked against i32::MAX before writing started.
-            out.int(tag as i32);
+            e.int(buf, tag as i32);
         } else {
-            out.size(tag);
+            e.size(buf, tag);
         }
         for &x in &view.values[nc * i..nc * (i + 1)] {
-            out.real(x);
+            e.real(buf, x);
         }
-        out.line()?;
-    }
+    })?;
     out.end(section)?;
     Ok(())
 }
@@ -571,6 +614,43 @@ mod tests {
         let mut v = Vec::new();
         assert!(matches!(write_msh41(&mut v, &m, &Msh41Options { binary: true }), Err(WriteError::TooLarge { .. })));
         assert!(v.is_empty());
+    }
+
+    #[test]
+    fn bytes_do_not_depend_on_the_thread_count() {
+        use crate::io::text_out::ROWS_PER_CHUNK;
+        // 76800 triangles and views: more rows than one round of chunks.
+        let mesh = fixtures::cube(80);
+        let mut m = MshModel::from_surface(&mesh);
+        let n_f = mesh.n_faces();
+        assert!(n_f > 16 * ROWS_PER_CHUNK);
+        m.element_data.push(DataView::contiguous("q", 3, (0..3 * n_f).map(|i| i as f64 / 7.0).collect(), 1));
+        m.surface_parametrizations.push(SurfaceParametrization {
+            surface: 1,
+            positions: mesh.positions.clone(),
+            uv: mesh.positions.iter().map(|p| Vec2::new(p.x, p.y)).collect(),
+            curvature: vec![],
+            triangles: mesh.triangles.iter().map(|t| t.map(|v| v.0 as _)).collect(),
+        });
+        for binary in [false, true] {
+            let on = |threads: usize| {
+                let pool = rayon::ThreadPoolBuilder::new().num_threads(threads).build().unwrap();
+                let mut v = Vec::new();
+                pool.install(|| write_msh41(&mut v, &m, &Msh41Options { binary })).unwrap();
+                v
+            };
+            let (one, two) = (on(1), on(2));
+            assert!(one == two, "binary {binary}: 1 and 2 threads differ");
+            if !binary {
+                let text = String::from_utf8(one).unwrap();
+                assert_eq!(section(&text, "Elements").len(), 2 + n_f);
+                assert_eq!(section(&text, "ElementData").len(), 9 + n_f);
+                let nodes = section(&text, "Nodes");
+                assert_eq!(nodes.len(), 2 + 2 * mesh.n_vertices());
+                let last: Vec<f64> = nodes.last().unwrap().split(' ').map(|s| s.parse().unwrap()).collect();
+                assert_eq!(last, mesh.positions.last().unwrap().as_slice());
+            }
+        }
     }
 
     #[test]
