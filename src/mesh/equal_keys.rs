@@ -17,8 +17,8 @@
 //! chunk size and hash seed (the seed is random per call, so a crafted
 //! input cannot aim all its keys at one bucket).
 //!
-//! Cost: `O(n)` expected, the key function evaluated twice per item, about
-//! `4n` bytes per pass of index scratch.
+//! Cost: `O(n)` expected, the key function evaluated once per item, and
+//! scratch of one key and index per item.
 
 use hashbrown::HashTable;
 use hashbrown::hash_table::Entry;
@@ -50,27 +50,28 @@ where
     }
     let bits = bucket_bits(n);
     let n_buckets = 1usize << bits;
-    let bucket_of = |i: usize| (state.hash_one(key(i)) >> (64 - bits)) as usize;
-    let parts: Vec<ChunkPartition> =
-        (0..n.div_ceil(CHUNK)).into_par_iter().map(|c| partition_chunk(c, n, n_buckets, &bucket_of)).collect();
+    let parts: Vec<ChunkPartition<K>> =
+        (0..n.div_ceil(CHUNK)).into_par_iter().map(|c| partition_chunk(c, n, bits, &key, &state)).collect();
     let firsts: Vec<Vec<u32>> = (0..n_buckets)
         .into_par_iter()
-        .map(|b| first_in_one_table(parts.iter().flat_map(|p| p.items(b)).map(|&i| i as usize), &key, &state))
+        .map(|b| first_of_entries(parts.iter().flat_map(|p| p.items(b)).copied(), &state))
         .collect();
     scatter_to_items(n, n_buckets, &parts, &firsts)
 }
 
-/// The indices of one chunk, counting-sorted by bucket.
-struct ChunkPartition {
-    /// The chunk's item indices, bucket by bucket, increasing within a bucket.
-    order: Vec<u32>,
+/// The keys and indices of one chunk, counting-sorted by bucket. The keys
+/// travel with the indices, so a bucket reads its items contiguously
+/// instead of gathering them from the whole input.
+struct ChunkPartition<K> {
+    /// The chunk's items, bucket by bucket, indices increasing within a bucket.
+    order: Vec<(K, u32)>,
     /// `order[offsets[b]..offsets[b + 1]]` are the items of bucket `b`.
     offsets: Vec<u32>,
 }
 
-impl ChunkPartition {
+impl<K> ChunkPartition<K> {
     /// The chunk's items that fall in bucket `b`.
-    fn items(&self, b: usize) -> &[u32] {
+    fn items(&self, b: usize) -> &[(K, u32)] {
         &self.order[self.offsets[b] as usize..self.offsets[b + 1] as usize]
     }
 }
@@ -81,15 +82,19 @@ fn bucket_bits(n: usize) -> u32 {
     (n / ITEMS_PER_BUCKET).max(1).next_power_of_two().trailing_zeros().clamp(1, 14)
 }
 
-/// Counting sort of chunk `c`'s indices by bucket.
-fn partition_chunk(
+/// Counting sort of chunk `c`'s items by bucket (the top `bits` bits of
+/// the key's hash).
+fn partition_chunk<K: Hash + Copy>(
     c: usize,
     n: usize,
-    n_buckets: usize,
-    bucket_of: &(impl Fn(usize) -> usize + Sync),
-) -> ChunkPartition {
+    bits: u32,
+    key: &impl Fn(usize) -> K,
+    state: &foldhash::fast::RandomState,
+) -> ChunkPartition<K> {
+    let n_buckets = 1usize << bits;
     let range = c * CHUNK..((c + 1) * CHUNK).min(n);
-    let buckets: Vec<u32> = range.clone().map(|i| bucket_of(i) as u32).collect();
+    let keyed: Vec<(K, u32)> = range.map(|i| (key(i), i as u32)).collect();
+    let buckets: Vec<u32> = keyed.iter().map(|e| (state.hash_one(e.0) >> (64 - bits)) as u32).collect();
     let mut offsets = vec![0u32; n_buckets + 1];
     for &b in &buckets {
         offsets[b as usize + 1] += 1;
@@ -98,36 +103,39 @@ fn partition_chunk(
         offsets[b + 1] += offsets[b];
     }
     let mut fill = offsets.clone();
-    let mut order = vec![0u32; buckets.len()];
-    for (i, &b) in range.zip(&buckets) {
-        order[fill[b as usize] as usize] = i as u32;
+    let mut order = keyed.clone();
+    for (e, &b) in keyed.iter().zip(&buckets) {
+        order[fill[b as usize] as usize] = *e;
         fill[b as usize] += 1;
     }
     ChunkPartition { order, offsets }
 }
 
-/// First index of each item's key among `items` (taken in the given,
-/// increasing order), in the order of `items`.
-fn first_in_one_table<K, F>(
-    items: impl Iterator<Item = usize> + Clone,
-    key: &F,
-    state: &foldhash::fast::RandomState,
-) -> Vec<u32>
+/// First index of each item's key among the items `range`, in order.
+fn first_in_one_table<K, F>(range: std::ops::Range<usize>, key: &F, state: &foldhash::fast::RandomState) -> Vec<u32>
 where
     K: Eq + Hash + Copy,
     F: Fn(usize) -> K,
 {
-    let n = items.clone().count();
+    first_of_entries(range.map(|i| (key(i), i as u32)), state)
+}
+
+/// First index of each entry's key among `entries` (keys with their
+/// indices, indices increasing), in the order of `entries`.
+fn first_of_entries<K: Eq + Hash + Copy>(
+    entries: impl Iterator<Item = (K, u32)> + Clone,
+    state: &foldhash::fast::RandomState,
+) -> Vec<u32> {
+    let n = entries.clone().count();
     // Keys live in the table entries: one memory access per probe.
     let mut table: HashTable<(K, u32)> = HashTable::with_capacity(n);
     let mut out = Vec::with_capacity(n);
-    for i in items {
-        let k = key(i);
+    for (k, i) in entries {
         let first = match table.entry(state.hash_one(k), |e| e.0 == k, |e| state.hash_one(e.0)) {
             Entry::Occupied(o) => o.get().1,
             Entry::Vacant(v) => {
-                v.insert((k, i as u32));
-                i as u32
+                v.insert((k, i));
+                i
             }
         };
         out.push(first);
@@ -137,7 +145,7 @@ where
 
 /// Puts each bucket's answers back in item order: chunk `c` reads, for
 /// every bucket, the run of answers that bucket produced for its items.
-fn scatter_to_items(n: usize, n_buckets: usize, parts: &[ChunkPartition], firsts: &[Vec<u32>]) -> Vec<u32> {
+fn scatter_to_items<K: Sync>(n: usize, n_buckets: usize, parts: &[ChunkPartition<K>], firsts: &[Vec<u32>]) -> Vec<u32> {
     // start[c][b]: where chunk c's items begin in bucket b's answers.
     let mut running = vec![0u32; n_buckets];
     let starts: Vec<Vec<u32>> = parts
@@ -155,7 +163,7 @@ fn scatter_to_items(n: usize, n_buckets: usize, parts: &[ChunkPartition], firsts
         let base = c * CHUNK;
         for b in 0..n_buckets {
             let answers = &firsts[b][start[b] as usize..];
-            for (&i, &first) in p.items(b).iter().zip(answers) {
+            for (&(_, i), &first) in p.items(b).iter().zip(answers) {
                 out[i as usize - base] = first;
             }
         }
