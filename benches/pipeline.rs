@@ -11,6 +11,11 @@
 //! cargo bench --bench pipeline -- --generate sphere:1000000:bench-out/sphere_1m.stl [FILE...]
 //! ```
 //!
+//! `--service` also runs each file through `meshatlas serve` (one server
+//! for the run, its numerical pool on every core) from POST to `succeeded`
+//! and prints the job's own step timings and the whole job beside the CLI's,
+//! with the ratio service / CLI.
+//!
 //! `--generate KIND:N:PATH` (repeatable) first writes a binary STL of about
 //! N triangles: `sphere` (a cube grid projected on the unit sphere, 12·n²
 //! triangles) or `torus` (radii 1 and 0.3, 6·n² triangles), then benches it
@@ -46,6 +51,11 @@ struct Args {
     /// triangles, binary STL). Repeatable; generated files are benched too.
     #[arg(long)]
     generate: Vec<String>,
+    /// Also run each file through the service (`meshatlas serve`, numerical
+    /// pool on every core) from POST to `succeeded`, and print it beside the
+    /// CLI run with the ratio.
+    #[arg(long)]
+    service: bool,
     /// Passed by `cargo bench`; ignored.
     #[arg(long, hide = true)]
     bench: bool,
@@ -171,6 +181,136 @@ fn print_artifacts(name: &str, tris: &str, artifacts: &[(String, u64)]) {
     println!("{name:<28} {tris:>10} {:<30} {:>14}", "bytes (all artifacts)", mb(total));
 }
 
+/// A `meshatlas serve` child on a free loopback port with its own data
+/// directory; killed on drop.
+struct Server {
+    child: std::process::Child,
+    base: String,
+    data_dir: PathBuf,
+}
+
+impl Server {
+    /// Starts the server and waits for its `listening on ADDR` line.
+    fn start(out: &Path) -> Result<Self, String> {
+        use std::io::BufRead;
+        let data_dir = out.join("service-data");
+        let _ = std::fs::remove_dir_all(&data_dir);
+        let mut child = Command::new(env!("CARGO_BIN_EXE_meshatlas"))
+            .args(["serve", "--addr", "127.0.0.1:0", "--data-dir"])
+            .arg(&data_dir)
+            .env("MESHATLAS_LOG", "warn")
+            .stdout(std::process::Stdio::piped())
+            .stderr(std::process::Stdio::null())
+            .spawn()
+            .map_err(|e| format!("cannot start meshatlas serve: {e}"))?;
+        let stdout = child.stdout.take().ok_or("no stdout")?;
+        let mut line = String::new();
+        std::io::BufReader::new(stdout).read_line(&mut line).map_err(|e| e.to_string())?;
+        let addr = line.trim().strip_prefix("listening on ").ok_or_else(|| format!("unexpected line `{line}`"))?;
+        Ok(Self { child, base: format!("http://{addr}"), data_dir })
+    }
+}
+
+impl Drop for Server {
+    fn drop(&mut self) {
+        let _ = self.child.kill();
+        let _ = self.child.wait();
+        let _ = std::fs::remove_dir_all(&self.data_dir);
+    }
+}
+
+/// Result of one job through the service.
+struct ServiceRun {
+    /// Seconds from sending the POST to reading `succeeded`.
+    wall: f64,
+    /// The pipeline's own step timings inside the job.
+    steps: Vec<(String, f64)>,
+    /// The pipeline's total inside the job.
+    pipeline_total: Option<f64>,
+}
+
+/// Posts `file` raw (the body read beforehand) and polls the job every 5 ms
+/// until it ends.
+fn run_service(server: &Server, file: &Path, stages: &str) -> Result<ServiceRun, String> {
+    let body = std::fs::read(file).map_err(|e| format!("{}: {e}", file.display()))?;
+    let name = file.file_name().map(|n| n.to_string_lossy().into_owned()).unwrap_or_default();
+    let rt = tokio::runtime::Builder::new_current_thread().enable_all().build().map_err(|e| e.to_string())?;
+    rt.block_on(service_job(&server.base, body, &name, stages))
+}
+
+/// The POST and the polling of [`run_service`].
+async fn service_job(base: &str, body: Vec<u8>, name: &str, stages: &str) -> Result<ServiceRun, String> {
+    {
+        let client = reqwest::Client::new();
+        let url = format!("{base}/v1/jobs?stages={stages}&filename={name}");
+        let start = Instant::now();
+        let resp = client.post(url).body(body).send().await.map_err(|e| e.to_string())?;
+        let job: Value = resp.json().await.map_err(|e| e.to_string())?;
+        let id = job["id"].as_str().ok_or_else(|| format!("no job id in {job}"))?.to_string();
+        loop {
+            let job: Value = client
+                .get(format!("{base}/v1/jobs/{id}"))
+                .send()
+                .await
+                .map_err(|e| e.to_string())?
+                .json()
+                .await
+                .map_err(|e| e.to_string())?;
+            match job["state"].as_str() {
+                Some("succeeded") => {
+                    let wall = start.elapsed().as_secs_f64();
+                    let report = &job["summary"];
+                    let steps = report["timings"]
+                        .as_array()
+                        .map(|ts| {
+                            ts.iter()
+                                .filter_map(|t| Some((t["step"].as_str()?.to_string(), t["seconds"].as_f64()?)))
+                                .collect()
+                        })
+                        .unwrap_or_default();
+                    return Ok(ServiceRun { wall, steps, pipeline_total: report["total_seconds"].as_f64() });
+                }
+                Some("failed" | "cancelled") => return Err(format!("job {id} ended: {}", job["error"])),
+                _ => tokio::time::sleep(std::time::Duration::from_millis(5)).await,
+            }
+        }
+    }
+}
+
+/// Prints the service rows of one file: every pipeline step inside the job
+/// against the CLI's, the pipeline total, and the whole job (POST to
+/// `succeeded`) against the CLI process.
+fn print_service_rows(name: &str, tris: &str, cli: &Run, service: &Result<ServiceRun, String>) {
+    let svc = match service {
+        Ok(s) => s,
+        Err(e) => {
+            println!("{name:<28} service FAILED: {e}");
+            return;
+        }
+    };
+    let cli_steps: BTreeMap<&str, f64> = cli.steps.iter().map(|(s, v)| (s.as_str(), *v)).collect();
+    let row = |step: &str, a: Option<f64>, b: Option<f64>| {
+        let fmt = |v: Option<f64>| v.map(|v| format!("{v:.4}")).unwrap_or_else(|| "-".into());
+        let ratio = match (a, b) {
+            (Some(a), Some(b)) if a > 0.0 => format!("{:.3}", b / a),
+            _ => "-".into(),
+        };
+        println!("{name:<28} {tris:>10} {step:<16} {:>10} {:>10} {ratio:>8}", fmt(a), fmt(b));
+    };
+    println!(
+        "{:<28} {:>10} {:<16} {:>10} {:>10} {:>8}",
+        "file", "triangles", "service step", "cli s", "service s", "ratio"
+    );
+    for (step, secs) in &svc.steps {
+        row(step.as_str(), cli_steps.get(step.as_str()).copied(), Some(*secs));
+    }
+    let cli_total: f64 = cli.steps.iter().map(|(_, v)| v).sum();
+    let svc_total: f64 = svc.steps.iter().map(|(_, v)| v).sum();
+    row("steps total", Some(cli_total), Some(svc_total));
+    row("pipeline", None, svc.pipeline_total);
+    row("job (POST→done)", Some(cli.wall), Some(svc.wall));
+}
+
 fn mib(kb: Option<u64>) -> String {
     kb.map(|k| format!("{:.1}", k as f64 / 1024.0)).unwrap_or_else(|| "-".into())
 }
@@ -190,6 +330,17 @@ fn main() {
         eprintln!("usage: cargo bench --bench pipeline -- [--gmsh] [--stages LIST] FILE...");
         std::process::exit(2);
     }
+    let server = if args.service {
+        match Server::start(&args.out) {
+            Ok(s) => Some(s),
+            Err(e) => {
+                eprintln!("{e}");
+                std::process::exit(2);
+            }
+        }
+    } else {
+        None
+    };
     println!("{:<28} {:>10} {:<12} {:>12} {:>12} {:>8}", "file", "triangles", "step", "meshatlas s", "gmsh s", "ratio");
     for file in &args.files {
         let name = file.file_name().map(|n| n.to_string_lossy().into_owned()).unwrap_or_default();
@@ -240,6 +391,9 @@ fn main() {
         }
         if let Some(f) = gmsh.as_ref().and_then(|g| g.failure.as_ref()) {
             println!("{name:<28} gmsh FAILED: {f}");
+        }
+        if let Some(server) = &server {
+            print_service_rows(&name, &tris, &ours, &run_service(server, file, &args.stages));
         }
     }
 }

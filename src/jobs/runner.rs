@@ -203,6 +203,55 @@ pub(crate) struct Inner {
     pub metrics: Metrics,
     /// Jobs whose end could not be written yet (storage faults).
     pub unrecorded: Mutex<Vec<storage::Unrecorded>>,
+    /// Progress reports waiting for the progress writer.
+    pub progress: PendingProgress,
+}
+
+/// The latest unwritten progress of each running job: `(stage, fraction,
+/// seconds per stage)`.
+type ProgressRow = (String, f64, BTreeMap<String, f64>);
+
+/// Progress handed from the jobs' threads to the progress writer thread
+/// ([`progress_writer_loop`]): a commit syncs the database to disk, which
+/// here takes milliseconds to a tenth of a second, and a job must not wait
+/// for it between two steps. Readers of a running job see its live progress
+/// from memory anyway; the stored row is for other processes and restarts.
+#[derive(Default)]
+pub(crate) struct PendingProgress {
+    rows: Mutex<HashMap<JobId, ProgressRow>>,
+    wake: Condvar,
+}
+
+impl PendingProgress {
+    /// Records `row` as job `id`'s latest progress and wakes the writer.
+    fn push(&self, id: JobId, row: ProgressRow) {
+        lock(&self.rows).insert(id, row);
+        self.wake.notify_one();
+    }
+}
+
+/// The progress writer: stores the latest progress of every job that
+/// reported since the last pass, until shutdown. A write that lands after
+/// the job ended changes nothing (`set_progress` only updates running jobs).
+pub(crate) fn progress_writer_loop(inner: Arc<Inner>) {
+    let pending = &inner.progress;
+    while !inner.shutdown.load(Ordering::Relaxed) {
+        let rows = {
+            let mut rows = lock(&pending.rows);
+            if rows.is_empty() {
+                rows = match pending.wake.wait_timeout(rows, Duration::from_millis(100)) {
+                    Ok((g, _)) => g,
+                    Err(p) => p.into_inner().0,
+                };
+            }
+            std::mem::take(&mut *rows)
+        };
+        for (id, (stage, fraction, secs)) in rows {
+            if let Err(e) = inner.store.set_progress(id, &stage, fraction, &secs) {
+                warn!(job = %id, error = %e, "cannot persist progress");
+            }
+        }
+    }
 }
 
 impl Inner {
@@ -314,10 +363,8 @@ impl ProgressSink for JobSink {
                 None
             }
         };
-        if let Some((stage, fraction, secs)) = write
-            && let Err(e) = self.inner.store.set_progress(self.id, &stage, fraction, &secs)
-        {
-            warn!(job = %self.id, error = %e, "cannot persist progress");
+        if let Some(row) = write {
+            self.inner.progress.push(self.id, row);
         }
     }
 }

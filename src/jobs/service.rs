@@ -156,7 +156,13 @@ impl JobService {
             shutdown: AtomicBool::new(false),
             metrics: Metrics::default(),
             unrecorded: Mutex::new(Vec::new()),
+            progress: Default::default(),
         });
+        let w = inner.clone();
+        std::thread::Builder::new()
+            .name("meshatlas-progress".into())
+            .spawn(move || super::runner::progress_writer_loop(w))
+            .map_err(|e| JobsError::Internal(format!("cannot start the progress writer: {e}")))?;
         let r = inner.clone();
         std::thread::Builder::new()
             .name("meshatlas-recorder".into())

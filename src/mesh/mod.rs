@@ -16,6 +16,7 @@ pub mod boundary;
 pub mod components;
 pub mod decimate;
 pub mod degenerate;
+pub mod equal_keys;
 pub mod error;
 pub mod fixtures;
 pub mod ids;

@@ -34,15 +34,15 @@
 //! Nothing is removed silently: every removal is a count in [`RepairReport`].
 
 use super::degenerate::resolve_zero_area_triangles;
+use super::equal_keys::first_index_of_equal_key;
 use super::orientation::orient_consistently;
 use super::summary::{TopologySummary, topology_summary};
 use super::weld::weld_vertices;
 use super::{MeshError, Topology, TriMesh};
 use crate::geom::{BoundingBox, Vec3};
-use hashbrown::HashTable;
+use rayon::prelude::*;
 use serde::Serialize;
 use std::collections::BTreeMap;
-use std::hash::BuildHasher;
 
 /// Height over the longest edge, relative to the model diagonal, at or
 /// below which a triangle counts as zero-area (see the module doc).
@@ -138,10 +138,10 @@ pub fn repair_triangle_soup(
     };
     super::trimesh::check_count("vertex", positions.len())?;
     super::trimesh::check_count("triangle", triangles.len())?;
-    for (f, t) in triangles.iter().enumerate() {
-        if let Some(&v) = t.iter().find(|&&v| v as usize >= positions.len()) {
-            return Err(MeshError::VertexOutOfRange { element: f, vertex: v, n_vertices: positions.len() });
-        }
+    let n_in = positions.len();
+    if let Some(f) = triangles.par_iter().position_first(|t| t.iter().any(|&v| v as usize >= n_in)) {
+        let vertex = triangles[f].into_iter().find(|&v| v as usize >= n_in).unwrap_or(u32::MAX);
+        return Err(MeshError::VertexOutOfRange { element: f, vertex, n_vertices: n_in });
     }
 
     let (positions, mut triangles, n_dropped) = drop_unreferenced(positions, triangles);
@@ -152,9 +152,7 @@ pub fn repair_triangle_soup(
     report.n_vertices_welded_tolerance = weld.n_welded_tolerance;
     report.weld_tolerance_abs = weld.tolerance;
     report.tolerance_weld_abandoned = weld.tolerance_weld_abandoned;
-    for t in &mut triangles {
-        *t = t.map(|v| weld.new_index[v as usize]);
-    }
+    triangles.par_iter_mut().for_each(|t| *t = t.map(|v| weld.new_index[v as usize]));
     let positions = weld.positions;
 
     let before = triangles.len();
@@ -198,26 +196,24 @@ pub fn repair_triangle_soup(
     Ok((mesh, report))
 }
 
-/// Remove triangles whose vertex set repeats an earlier one; returns how many.
+/// Remove triangles whose vertex set repeats an earlier one (the first is
+/// kept, order preserved); returns how many. Equal sorted triples are
+/// grouped on the pool ([`first_index_of_equal_key`]).
 fn remove_duplicates(triangles: &mut Vec<[u32; 3]>) -> usize {
-    let state = foldhash::fast::RandomState::default();
-    let key = |t: &[u32; 3]| {
-        let mut k = *t;
+    let key = |f: usize| {
+        let mut k = triangles[f];
         k.sort_unstable();
         k
     };
-    let mut seen: HashTable<[u32; 3]> = HashTable::with_capacity(triangles.len());
+    let first = first_index_of_equal_key(triangles.len(), key);
     let before = triangles.len();
-    triangles.retain(|t| {
-        let k = key(t);
-        let h = state.hash_one(k);
-        match seen.entry(h, |s| *s == k, |s| state.hash_one(*s)) {
-            hashbrown::hash_table::Entry::Occupied(_) => false,
-            hashbrown::hash_table::Entry::Vacant(v) => {
-                v.insert(k);
-                true
-            }
-        }
+    if first.iter().enumerate().all(|(f, &g)| g as usize == f) {
+        return 0;
+    }
+    let mut f = 0;
+    triangles.retain(|_| {
+        f += 1;
+        first[f - 1] as usize == f - 1
     });
     before - triangles.len()
 }
@@ -349,6 +345,36 @@ mod tests {
         let tris: Vec<[u32; 3]> = r.triangles.iter().map(|t| t.map(|v| v.0)).collect();
         assert!(tris.iter().all(|t| !super::super::degenerate::is_zero_area(&r.positions, t, diagonal)));
         assert!(r.signed_volume() > 0.0);
+    }
+
+    /// The repaired mesh and report of a large soup (above the grouping's
+    /// partitioning threshold, with duplicates, degenerate triangles and a
+    /// tolerance weld) are the same on one and two threads.
+    #[test]
+    fn repair_does_not_depend_on_the_thread_count() {
+        let mut m = fixtures::cube(40);
+        for p in &mut m.positions {
+            *p = p.normalize();
+        }
+        let (mut p, mut t) = soup(&m);
+        for k in 0..500 {
+            t.push(t[k * 7]); // duplicate
+            t.push([t[k][0], t[k][0], t[k][1]]); // degenerate
+            let v = t[k * 11][0] as usize;
+            p[v] += Vec3::new(1e-9, 0.0, 0.0); // welds by tolerance
+        }
+        let run = |threads: usize| {
+            let pool = rayon::ThreadPoolBuilder::new().num_threads(threads).build().unwrap();
+            pool.install(|| repair_triangle_soup(p.clone(), t.clone(), 1e-6).unwrap())
+        };
+        let (one, rep_one) = run(1);
+        let (two, rep_two) = run(2);
+        assert_eq!(one.positions, two.positions);
+        assert_eq!(one.triangles, two.triangles);
+        assert_eq!(rep_one, rep_two);
+        assert_eq!((one.n_faces(), one.n_vertices()), (m.n_faces(), m.n_vertices()));
+        assert_eq!((rep_one.n_duplicate_triangles_removed, rep_one.n_degenerate_triangles_removed), (500, 500));
+        assert_eq!((rep_one.closed, rep_one.euler_characteristic), (true, 2));
     }
 
     #[test]

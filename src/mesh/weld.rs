@@ -3,8 +3,9 @@
 //!
 //! **Exact weld.** Two vertices merge when their coordinates are bitwise
 //! equal after mapping `−0.0` to `0.0` (NaN cannot occur: readers reject it).
-//! A hash table of vertex indices keyed by the coordinate bits finds them in
-//! one `O(n)` pass; the merged vertex keeps its first occurrence's position.
+//! Grouping equal coordinate bits ([`super::equal_keys`], partitioned hash
+//! tables on the pool) finds them in `O(n)`; the merged vertex keeps its
+//! first occurrence's position and ids follow the order of first occurrence.
 //!
 //! **Tolerance weld.** With `δ = tolerance_rel · D`, `D` the bounding-box
 //! diagonal of the exactly-welded vertices, vertices `p`, `q` with
@@ -12,8 +13,9 @@
 //! relation (union–find): a cluster is a connected component of the graph
 //! "closer than δ". Candidates come from a spatial hash grid of cell size
 //! `h = 8δ`: for a point only the cells overlapping the box `p ± 1.01δ` are
-//! visited (one to eight, about two on average); its own cell needs no
-//! lookup (points are chained per cell in insertion order). The cost is
+//! visited (one to eight, about two on average). The cells are matched by
+//! grouping equal cell keys, not by one lookup per point in a global table,
+//! and the pairs are checked on the pool ([`weld_within`]). The cost is
 //! `O(n)` for meshes whose vertices are not much denser than δ; there is no
 //! `O(n²)` pass.
 //! Each cluster keeps the position of its lowest-index vertex, so welding
@@ -37,9 +39,8 @@
 
 use crate::geom::{BoundingBox, Vec3};
 use crate::mesh::components::DisjointSets;
-use hashbrown::HashTable;
-use hashbrown::hash_table::Entry;
-use std::hash::BuildHasher;
+use crate::mesh::equal_keys::first_index_of_equal_key;
+use rayon::prelude::*;
 
 /// Smallest relative tolerance applied (see the module doc).
 pub const MIN_RELATIVE_TOLERANCE: f64 = 1e-14;
@@ -92,7 +93,7 @@ pub fn weld_vertices(positions: &[Vec3], tolerance_rel: f64) -> Weld {
         };
     };
     let n_welded_tolerance = exact_positions.len() - cluster_positions.len();
-    let new_index = exact_index.iter().map(|&i| cluster_index[i as usize]).collect();
+    let new_index = exact_index.par_iter().map(|&i| cluster_index[i as usize]).collect();
     Weld {
         new_index,
         positions: cluster_positions,
@@ -112,32 +113,104 @@ fn exact_key(p: &Vec3) -> [u64; 3] {
 /// Merge bitwise-equal vertices. Returns the new index of every vertex and
 /// the distinct positions in order of first occurrence.
 pub fn weld_exact(positions: &[Vec3]) -> (Vec<u32>, Vec<Vec3>) {
-    let state = foldhash::fast::RandomState::default();
-    let hash = |k: &[u64; 3]| state.hash_one(k);
-    // Keys live in the table entries: one memory access per probe.
-    let mut table: HashTable<([u64; 3], u32)> = HashTable::with_capacity(positions.len() / 4 + 16);
-    let mut unique: Vec<Vec3> = Vec::with_capacity(positions.len() / 4 + 16);
-    let mut new_index = Vec::with_capacity(positions.len());
-    for p in positions {
-        let k = exact_key(p);
-        let id = match table.entry(hash(&k), |e| e.0 == k, |e| hash(&e.0)) {
-            Entry::Occupied(o) => o.get().1,
-            Entry::Vacant(v) => {
-                let id = unique.len() as u32;
-                v.insert((k, id));
-                unique.push(*p);
-                id
-            }
-        };
-        new_index.push(id);
+    let first = first_index_of_equal_key(positions.len(), |i| exact_key(&positions[i]));
+    let (new_index, kept) = dense_ids_of_firsts(&first);
+    (new_index, kept.iter().map(|&i| positions[i as usize]).collect())
+}
+
+/// Dense ids `0..k`, numbered in order of first occurrence, from
+/// first-occurrence indices (`first[i] <= i`, `first[first[i]] == first[i]`).
+/// Returns the id of every item and the first item of every id.
+fn dense_ids_of_firsts(first: &[u32]) -> (Vec<u32>, Vec<u32>) {
+    // Only the entries of first occurrences are written and read.
+    let mut id_of_first = vec![u32::MAX; first.len()];
+    let mut kept = Vec::new();
+    for (i, &f) in first.iter().enumerate() {
+        if f as usize == i {
+            id_of_first[i] = kept.len() as u32;
+            kept.push(i as u32);
+        }
     }
-    (new_index, unique)
+    let new_index = first.par_iter().map(|&f| id_of_first[f as usize]).collect();
+    (new_index, kept)
+}
+
+/// The grid of the tolerance weld: cells of size `h` from the box corner.
+struct Grid {
+    origin: Vec3,
+    h: f64,
+}
+
+impl Grid {
+    /// Cell coordinate of `c` along `axis`.
+    #[inline]
+    fn coord(&self, c: f64, axis: usize) -> i64 {
+        ((c - self.origin[axis]) / self.h).floor() as i64
+    }
+
+    /// The cell containing `p`.
+    #[inline]
+    fn cell(&self, p: &Vec3) -> [i64; 3] {
+        [self.coord(p.x, 0), self.coord(p.y, 1), self.coord(p.z, 2)]
+    }
+
+    /// The cells other than `p`'s own that the box `p ± pad` overlaps (at
+    /// most 7, as `pad` is below `h / 2`), in a fixed order, and their count.
+    #[inline]
+    fn other_cells(&self, p: &Vec3, pad: f64) -> ([[i64; 3]; 8], usize) {
+        let own = self.cell(p);
+        let lo = [self.coord(p.x - pad, 0), self.coord(p.y - pad, 1), self.coord(p.z - pad, 2)];
+        let hi = [self.coord(p.x + pad, 0), self.coord(p.y + pad, 1), self.coord(p.z + pad, 2)];
+        let mut out = [[0i64; 3]; 8];
+        let mut k = 0;
+        for cx in lo[0]..=hi[0] {
+            for cy in lo[1]..=hi[1] {
+                for cz in lo[2]..=hi[2] {
+                    let c = [cx, cy, cz];
+                    if c != own && k < 8 {
+                        out[k] = c;
+                        k += 1;
+                    }
+                }
+            }
+        }
+        (out, k)
+    }
+}
+
+/// Points of every occupied cell as compressed rows indexed by the cell's
+/// first point: `members[offsets[r]..offsets[r + 1]]`, increasing, for a
+/// first point `r` (empty rows for the other points).
+fn members_by_first_point(first: &[u32]) -> (Vec<u32>, Vec<u32>) {
+    let n = first.len();
+    let mut offsets = vec![0u32; n + 1];
+    for &f in first {
+        offsets[f as usize + 1] += 1;
+    }
+    for i in 0..n {
+        offsets[i + 1] += offsets[i];
+    }
+    let mut fill = offsets.clone();
+    let mut members = vec![0u32; n];
+    for (p, &f) in first.iter().enumerate() {
+        members[fill[f as usize] as usize] = p as u32;
+        fill[f as usize] += 1;
+    }
+    (offsets, members)
 }
 
 /// Join vertices closer than `tolerance` (absolute, > 0), transitively.
 /// Returns the new index of every vertex and one position per cluster (its
 /// lowest-index vertex's), clusters numbered by their lowest index; `None`
 /// when the work bound of the module doc is exceeded.
+///
+/// The candidates of a point `p` are the points of lower index in the cells
+/// its box `p ± 1.01δ` overlaps. Cells are found by grouping equal keys
+/// ([`first_index_of_equal_key`]) over the points' own cells followed by the
+/// other cells their boxes overlap ("visits"): a visit whose first equal key
+/// is a point's own cell finds that cell's points. Each pair is a candidate
+/// once (from the point of higher index). Counting, checking and grouping
+/// run on the pool; the result does not depend on the thread count.
 pub fn weld_within(positions: &[Vec3], tolerance: f64) -> Option<(Vec<u32>, Vec<Vec3>)> {
     let n = positions.len();
     let Some(bbox) = BoundingBox::of_points(positions) else { return Some((Vec::new(), Vec::new())) };
@@ -146,66 +219,55 @@ pub fn weld_within(positions: &[Vec3], tolerance: f64) -> Option<(Vec<u32>, Vec<
     if h.is_nan() || h <= 0.0 || (bbox.max - bbox.min).max() / h > 1e15 {
         return Some(((0..n as u32).collect(), positions.to_vec()));
     }
-    let mut budget = 64 * n as u64 + 1_000_000;
-    let cell_of = |c: f64, axis: usize| ((c - bbox.min[axis]) / h).floor() as i64;
-    let cell = |p: &Vec3| [cell_of(p.x, 0), cell_of(p.y, 1), cell_of(p.z, 2)];
+    let budget = 64 * n as u64 + 1_000_000;
+    let grid = Grid { origin: bbox.min, h };
+    let pad = 1.01 * tolerance;
+    let visits: Vec<([i64; 3], u32)> = positions
+        .par_iter()
+        .enumerate()
+        .flat_map_iter(|(i, p)| {
+            let (cells, k) = grid.other_cells(p, pad);
+            cells.into_iter().take(k).map(move |c| (c, i as u32))
+        })
+        .collect();
+    let first =
+        first_index_of_equal_key(n + visits.len(), |j| if j < n { grid.cell(&positions[j]) } else { visits[j - n].0 });
+    let (offsets, members) = members_by_first_point(&first[..n]);
+    let cell_points = |r: u32| &members[offsets[r as usize] as usize..offsets[r as usize + 1] as usize];
+    // Candidates of point `p` in the cell whose first point is `r`: its points below `p`.
+    let below = |r: u32, p: u32| {
+        let pts = cell_points(r);
+        &pts[..pts.partition_point(|&q| q < p)]
+    };
+    // A visit finds points only when its cell is some point's own cell.
+    let visited_cell = |j: usize| Some(first[n + j]).filter(|&r| (r as usize) < n);
 
-    // Grid: cell → first point, `next` links the points of a cell.
-    let state = foldhash::fast::RandomState::default();
-    let hash = |k: &[i64; 3]| state.hash_one(k);
-    let mut heads: HashTable<([i64; 3], u32)> = HashTable::with_capacity(n);
-    let mut next = vec![u32::MAX; n];
-    for (i, p) in positions.iter().enumerate() {
-        let c = cell(p);
-        match heads.entry(hash(&c), |e| e.0 == c, |e| hash(&e.0)) {
-            Entry::Occupied(mut o) => {
-                next[i] = o.get().1;
-                o.get_mut().1 = i as u32;
-            }
-            Entry::Vacant(v) => {
-                v.insert((c, i as u32));
-            }
-        }
+    let n_checks: u64 = (0..n as u32).into_par_iter().map(|p| below(first[p as usize], p).len() as u64).sum::<u64>()
+        + (0..visits.len())
+            .into_par_iter()
+            .map(|j| visited_cell(j).map_or(0, |r| below(r, visits[j].1).len() as u64))
+            .sum::<u64>();
+    if n_checks > budget {
+        return None;
+    }
+    let tol2 = tolerance * tolerance;
+    let close = |p: u32, q: u32| (positions[q as usize] - positions[p as usize]).norm_squared() <= tol2;
+    let mut pairs: Vec<(u32, u32)> = (0..n as u32)
+        .into_par_iter()
+        .flat_map_iter(|p| below(first[p as usize], p).iter().filter(move |&&q| close(p, q)).map(move |&q| (q, p)))
+        .collect();
+    pairs.par_extend((0..visits.len()).into_par_iter().flat_map_iter(|j| {
+        let p = visits[j].1;
+        visited_cell(j).map(|r| below(r, p)).unwrap_or(&[]).iter().filter(move |&&q| close(p, q)).map(move |&q| (q, p))
+    }));
+    if pairs.is_empty() {
+        return Some(((0..n as u32).collect(), positions.to_vec()));
     }
 
     let mut sets = DisjointSets::new(n);
-    let tol2 = tolerance * tolerance;
-    let pad = 1.01 * tolerance;
-    for (i, p) in positions.iter().enumerate() {
-        let own = cell(p);
-        let lo = [cell_of(p.x - pad, 0), cell_of(p.y - pad, 1), cell_of(p.z - pad, 2)];
-        let hi = [cell_of(p.x + pad, 0), cell_of(p.y + pad, 1), cell_of(p.z + pad, 2)];
-        for cx in lo[0]..=hi[0] {
-            for cy in lo[1]..=hi[1] {
-                for cz in lo[2]..=hi[2] {
-                    let c = [cx, cy, cz];
-                    // In its own cell, the earlier points follow `i` in the chain.
-                    let mut q = if c == own {
-                        next[i]
-                    } else {
-                        match heads.find(hash(&c), |e| e.0 == c) {
-                            Some(&(_, head)) => head,
-                            None => continue,
-                        }
-                    };
-                    while q != u32::MAX {
-                        // Each pair once: q < i.
-                        if (q as usize) < i {
-                            if budget == 0 {
-                                return None;
-                            }
-                            budget -= 1;
-                            if (positions[q as usize] - p).norm_squared() <= tol2 {
-                                sets.union(q, i as u32);
-                            }
-                        }
-                        q = next[q as usize];
-                    }
-                }
-            }
-        }
+    for &(q, p) in &pairs {
+        sets.union(q, p);
     }
-
     let mut label_of_root = vec![u32::MAX; n];
     let mut new_index = Vec::with_capacity(n);
     let mut out = Vec::new();
@@ -283,6 +345,76 @@ mod tests {
                 assert_eq!(out[idx[i] as usize], pts[(0..n).find(|&j| idx[j] == idx[i]).unwrap()]);
             }
         }
+    }
+
+    /// Clusters by an independent method: a sweep over points sorted by x,
+    /// checking every pair whose x differ by at most the tolerance.
+    fn sweep_clusters(pts: &[Vec3], tol: f64) -> Vec<u32> {
+        let mut order: Vec<usize> = (0..pts.len()).collect();
+        order.sort_by(|&a, &b| pts[a].x.total_cmp(&pts[b].x));
+        let mut sets = DisjointSets::new(pts.len());
+        for (k, &i) in order.iter().enumerate() {
+            for &j in order[k + 1..].iter().take_while(|&&j| pts[j].x - pts[i].x <= tol) {
+                if (pts[i] - pts[j]).norm_squared() <= tol * tol {
+                    sets.union(i as u32, j as u32);
+                }
+            }
+        }
+        sets.labels().0
+    }
+
+    /// Above the partitioning threshold of the grouping, with near
+    /// duplicates on cell faces, and identical on one and two threads.
+    #[test]
+    fn tolerance_weld_of_many_points_matches_a_sweep_on_any_thread_count() {
+        let mut rng = StdRng::seed_from_u64(11);
+        let tol = 1e-4;
+        let mut pts: Vec<Vec3> =
+            (0..40_000).map(|_| Vec3::new(rng.random::<f64>(), rng.random::<f64>(), rng.random::<f64>())).collect();
+        for k in 0..8000 {
+            let d = Vec3::new(rng.random::<f64>() - 0.5, rng.random::<f64>() - 0.5, rng.random::<f64>() - 0.5);
+            pts.push(pts[k * 5] + d.normalize() * tol * 0.999 * rng.random::<f64>());
+        }
+        let run = |threads: usize| {
+            let pool = rayon::ThreadPoolBuilder::new().num_threads(threads).build().unwrap();
+            pool.install(|| weld_within(&pts, tol).unwrap())
+        };
+        let (idx, out) = run(2);
+        assert_eq!((idx.clone(), out.clone()), run(1));
+        let labels = sweep_clusters(&pts, tol);
+        let n_clusters = labels.iter().max().map_or(0, |&m| m as usize + 1);
+        assert_eq!(out.len(), n_clusters);
+        assert!(out.len() <= 40_000 && out.len() >= 32_000, "{}", out.len());
+        // Same partition: the label maps agree both ways.
+        let mut to_label = vec![u32::MAX; out.len()];
+        for (i, &c) in idx.iter().enumerate() {
+            assert!(to_label[c as usize] == u32::MAX || to_label[c as usize] == labels[i], "point {i}");
+            to_label[c as usize] = labels[i];
+        }
+        let mut first_of_cluster = vec![usize::MAX; out.len()];
+        for (i, &c) in idx.iter().enumerate().rev() {
+            first_of_cluster[c as usize] = i;
+        }
+        for (c, &i) in first_of_cluster.iter().enumerate() {
+            assert_eq!(out[c], pts[i], "cluster {c} keeps its lowest-index position");
+        }
+    }
+
+    #[test]
+    fn exact_weld_of_many_points_numbers_by_first_occurrence() {
+        let mut rng = StdRng::seed_from_u64(12);
+        let distinct: Vec<Vec3> = (0..20_000).map(|_| Vec3::new(rng.random(), rng.random(), rng.random())).collect();
+        let pts: Vec<Vec3> = (0..90_000).map(|_| distinct[rng.random_range(0..distinct.len())]).collect();
+        let (idx, uniq) = weld_exact(&pts);
+        let mut seen: std::collections::HashMap<[u64; 3], u32> = Default::default();
+        let mut expected = Vec::new();
+        for p in &pts {
+            let next = seen.len() as u32;
+            expected.push(*seen.entry(exact_key(p)).or_insert(next));
+        }
+        assert_eq!(idx, expected);
+        assert_eq!(uniq.len(), seen.len());
+        assert!(idx.iter().zip(&pts).all(|(&i, p)| uniq[i as usize] == *p));
     }
 
     #[test]
