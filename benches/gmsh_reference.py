@@ -8,6 +8,8 @@ Prints one JSON object per line on stdout as soon as each step is timed
 (only the Gmsh call is timed), so the steps before a crash are kept:
   {"step": "load", "seconds": s}        gmsh.merge(FILE)
   {"step": "atlas", "seconds": s}       classifySurfaces(40 deg, True, True, pi) + createGeometry()
+  {"step": "atlas.write", "seconds": s} gmsh.write() of the atlas as MSH 4.1 with its
+                                        parametrizations (Mesh.SaveParametric), like atlas.msh
   {"step": "crossfield", "seconds": s}  computeCrossField() on the classified geometry
   {"n_triangles": n, "peak_rss_kb": k}  at the end (ru_maxrss, kB on Linux)
 
@@ -18,7 +20,9 @@ reports the crash and keeps the earlier steps.
 import json
 import math
 import resource
+import os
 import sys
+import tempfile
 import time
 
 import gmsh
@@ -53,6 +57,9 @@ def main():
         n_triangles = sum(len(t) for t in tags)
         if "atlas" in stages or "crossfield" in stages:
             timed("atlas", atlas)
+            with tempfile.TemporaryDirectory() as tmp:
+                gmsh.option.setNumber("Mesh.SaveParametric", 1)
+                timed("atlas.write", lambda: gmsh.write(os.path.join(tmp, "atlas.msh")))
         if "crossfield" in stages:
             timed("crossfield", gmsh.model.mesh.computeCrossField)
     finally:
