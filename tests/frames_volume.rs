@@ -9,7 +9,8 @@ use meshatlas::frames::volume::{tet_boundary_faces, tetrahedralize_enclosed_volu
 use meshatlas::frames::{FramesError, FramesOptions, compute_frame_field};
 use meshatlas::geom::Vec3;
 use meshatlas::io::{LoadOptions, load_path};
-use meshatlas::mesh::{TetMesh, TriMesh, VertexId, fixtures};
+use meshatlas::mesh::fixtures::{self, placed, union};
+use meshatlas::mesh::{TetMesh, TriMesh, VertexId};
 use meshatlas::progress::Progress;
 
 /// Largest distance from the vertices of `surface` to the boundary of `mesh`.
@@ -180,26 +181,6 @@ fn corpus_closed_surfaces_give_valid_fields() {
             r.singular.n_curves
         );
     }
-}
-
-/// `mesh` scaled by `s` per axis, then moved by `d`.
-fn placed(mesh: &TriMesh, s: Vec3, d: Vec3) -> TriMesh {
-    let mut m = mesh.clone();
-    for p in &mut m.positions {
-        *p = p.component_mul(&s) + d;
-    }
-    m
-}
-
-/// The meshes as one surface (one vertex and triangle list).
-fn union(meshes: &[TriMesh]) -> TriMesh {
-    let mut out = TriMesh::default();
-    for m in meshes {
-        let n = out.positions.len() as u32;
-        out.positions.extend(&m.positions);
-        out.triangles.extend(m.triangles.iter().map(|t| t.map(|v| VertexId(v.0 + n))));
-    }
-    out
 }
 
 /// 12 bone-like closed parts (elongated ellipsoids of 320 triangles, lengths

@@ -198,32 +198,12 @@ fn containing_components(
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::mesh::fixtures;
-
-    /// `mesh` moved by `d` and scaled by `s` about the origin first.
-    fn placed(mesh: &TriMesh, s: f64, d: Vec3) -> TriMesh {
-        let mut m = mesh.clone();
-        for p in &mut m.positions {
-            *p = *p * s + d;
-        }
-        m
-    }
-
-    /// The union of the given meshes as one vertex and triangle list.
-    fn union(meshes: &[TriMesh]) -> TriMesh {
-        let mut out = TriMesh::default();
-        for m in meshes {
-            let n = out.positions.len() as u32;
-            out.positions.extend(&m.positions);
-            out.triangles.extend(m.triangles.iter().map(|t| t.map(|v| VertexId(v.0 + n))));
-        }
-        out
-    }
+    use crate::mesh::fixtures::{self, placed, union};
 
     #[test]
     fn far_apart_components_are_separate_parts_with_their_own_volume() {
         let a = fixtures::icosphere(2);
-        let b = placed(&fixtures::cube(2), 0.5, Vec3::new(10.0, 0.0, 0.0));
+        let b = placed(&fixtures::cube(2), Vec3::repeat(0.5), Vec3::new(10.0, 0.0, 0.0));
         let parts = closed_parts(&union(&[a.clone(), b.clone()]));
         assert_eq!(parts.len(), 2);
         assert_eq!((parts[0].components.clone(), parts[1].components.clone()), (vec![0], vec![1]));
@@ -239,8 +219,8 @@ mod tests {
     fn a_nested_shell_is_one_part_whose_cavity_is_subtracted() {
         // Outer cube [-1, 1]³ (volume 8) around a ball of radius 0.5, both
         // outward oriented: parity encloses the shell, 8 − V_ball.
-        let ball = placed(&fixtures::icosphere(2), 0.5, Vec3::zeros());
-        let far = placed(&fixtures::icosphere(1), 0.1, Vec3::new(0.0, 5.0, 0.0));
+        let ball = placed(&fixtures::icosphere(2), Vec3::repeat(0.5), Vec3::zeros());
+        let far = placed(&fixtures::icosphere(1), Vec3::repeat(0.1), Vec3::new(0.0, 5.0, 0.0));
         let parts = closed_parts(&union(&[fixtures::cube(3), ball.clone(), far]));
         assert_eq!(parts.len(), 2);
         assert_eq!(parts[0].components, vec![0, 1]);

@@ -267,6 +267,27 @@ pub fn mobius_band(n: usize) -> TriMesh {
     TriMesh::from_raw(positions, &tris)
 }
 
+/// `mesh` scaled by `s` per axis, then moved by `d`: separate parts of
+/// chosen sizes and shapes for multi-part inputs.
+pub fn placed(mesh: &TriMesh, s: Vec3, d: Vec3) -> TriMesh {
+    let mut m = mesh.clone();
+    for p in &mut m.positions {
+        *p = p.component_mul(&s) + d;
+    }
+    m
+}
+
+/// The meshes as one surface (one vertex and triangle list, nothing welded).
+pub fn union(meshes: &[TriMesh]) -> TriMesh {
+    let mut out = TriMesh::default();
+    for m in meshes {
+        let n = out.positions.len() as u32;
+        out.positions.extend(&m.positions);
+        out.triangles.extend(m.triangles.iter().map(|t| t.map(|v| VertexId(v.0 + n))));
+    }
+    out
+}
+
 /// Drop vertices no triangle uses, renumbering the rest in order.
 pub fn compact(mut mesh: TriMesh) -> TriMesh {
     let used = super::components::referenced_vertices(&mesh);
