@@ -4,20 +4,26 @@
 mod common;
 
 use meshatlas::crossfield::{
-    CrossfieldOptions, compute_crossfield, write_crossfield_msh, write_crossfield_msh_as, write_crossfield_vtu,
-    write_singularities_json,
+    Crossfield, CrossfieldOptions, compute_crossfield, write_crossfield_msh, write_crossfield_msh_as,
+    write_crossfield_vtu, write_singularities_json,
 };
 use meshatlas::io::msh_output::{MshVersion, OutputOptions};
-use meshatlas::mesh::{EdgeId, Topology, fixtures};
+use meshatlas::mesh::{EdgeId, Topology, TriMesh, fixtures};
 use meshatlas::progress::Progress;
 use std::fs::File;
 
-#[test]
-fn artifacts_open_in_meshio_and_gmsh() {
-    let mesh = fixtures::disk(8);
+/// The unit disk of `rings` rings and its default crossfield, boundary-aligned.
+fn disk_field(rings: usize) -> (TriMesh, Crossfield) {
+    let mesh = fixtures::disk(rings);
     let topo = Topology::new(&mesh);
     let aligned: Vec<bool> = (0..topo.n_edges()).map(|e| topo.is_boundary_edge(EdgeId::new(e))).collect();
     let field = compute_crossfield(&mesh, &topo, &aligned, &CrossfieldOptions::default(), &Progress::none()).unwrap();
+    (mesh, field)
+}
+
+#[test]
+fn artifacts_open_in_meshio_and_gmsh() {
+    let (mesh, field) = disk_field(8);
     let dir = common::scratch("crossfield_artifacts", "disk");
     let (vtu, msh, json) = (dir.join("crossfield.vtu"), dir.join("crossfield.msh"), dir.join("singularities.json"));
     write_crossfield_vtu(&field, &mesh, File::create(&vtu).unwrap()).unwrap();
@@ -72,10 +78,7 @@ print(json.dumps({
 /// default ASCII 4.1.
 #[test]
 fn crossfield_msh_in_2_2_and_binary_opens_in_meshio_and_gmsh() {
-    let mesh = fixtures::disk(6);
-    let topo = Topology::new(&mesh);
-    let aligned: Vec<bool> = (0..topo.n_edges()).map(|e| topo.is_boundary_edge(EdgeId::new(e))).collect();
-    let field = compute_crossfield(&mesh, &topo, &aligned, &CrossfieldOptions::default(), &Progress::none()).unwrap();
+    let (mesh, field) = disk_field(6);
     let dir = common::scratch("crossfield_artifacts", "msh_variants");
     let variants = [
         ("v22.msh", OutputOptions { msh_version: MshVersion::V22, msh_binary: Some(false) }, "2.2"),

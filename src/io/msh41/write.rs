@@ -448,9 +448,7 @@ fn write_view<W: Write>(out: &mut Out<W>, section: &str, view: &DataView) -> Res
 
 /// Shortest round-trip text of `x` appended to a `String`.
 fn push_f64_string(s: &mut String, x: f64) {
-    let mut b = Vec::new();
-    push_f64(&mut b, x);
-    s.push_str(&String::from_utf8_lossy(&b));
+    s.push_str(zmij::Buffer::new().format(x));
 }
 
 #[cfg(test)]
