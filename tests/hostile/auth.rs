@@ -346,7 +346,7 @@ async fn the_stored_bytes_quota_answers_507_and_retention_frees_it() {
     let size = std::fs::metadata(shared_data("gmsh/sphere_tiny.stl")).unwrap().len();
     let quota = (size + size / 2).to_string();
     let (s, _tmp, _) =
-        start_with_tokens(&["--max-stored-bytes", &quota, "--retention", "2s", "--test-retention-sweep-ms", "200"]);
+        start_with_tokens(&["--max-stored-bytes", &quota, "--retention", "8s", "--test-retention-sweep-ms", "200"]);
     let first = submit_ok(&s, TOKEN_A).await;
     let (st, _, body) = submit_as(&s, TOKEN_B).await;
     assert_eq!(st, 507, "{body}");
@@ -369,7 +369,7 @@ async fn the_stored_bytes_quota_answers_507_and_retention_frees_it() {
         if st == 404 {
             break;
         }
-        assert!(start.elapsed() < Duration::from_secs(20), "the finished job never expired");
+        assert!(start.elapsed() < Duration::from_secs(30), "the finished job never expired");
         tokio::time::sleep(Duration::from_millis(100)).await;
     }
     // The record goes first, then the files.
