@@ -1,7 +1,7 @@
 //! meshatlas: turns raw surface triangulations into what mesh generators need.
 //!
 //! The numerical core (`geom`, `mesh`, `linalg`, `fem`, `io`, `atlas`,
-//! `crossfield`, `frames`) is synchronous, knows nothing of HTTP or jobs, and
+//! `crossfield`, `frames`, `quads`) is synchronous, knows nothing of HTTP or jobs, and
 //! takes a [`progress::Progress`] handle for progress and cancellation.
 //! `pipeline` sequences the stages and writes artifacts; `jobs` runs pipelines
 //! durably on a rayon pool; `http` exposes jobs over axum.
@@ -28,6 +28,7 @@ pub mod io;
 pub mod atlas;
 pub mod crossfield;
 pub mod frames;
+pub mod quads;
 
 pub mod pipeline;
 

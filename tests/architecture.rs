@@ -15,6 +15,7 @@ const CORE: &[&str] = &[
     "src/atlas",
     "src/crossfield",
     "src/frames",
+    "src/quads",
     "src/progress.rs",
     "src/failure.rs",
 ];
