@@ -23,12 +23,121 @@
 //!    identity and conformity, asserted on every output; [`report`].
 //! 8. [`output`]: `quads.msh` and `quads.vtu`.
 
+pub mod check;
+pub mod cleanup;
 pub mod error;
+pub mod jacobian;
 pub mod model;
 pub mod options;
+pub mod order2;
+pub mod output;
+pub mod projection;
+pub mod quality;
+pub mod recombine;
+pub mod report;
+pub mod smooth;
 pub mod surface_mesh;
+pub mod triangulation;
 
 pub use error::QuadsError;
 pub use model::{QuadModel, quad_model};
 pub use options::QuadsOptions;
+pub use output::{write_quads_msh, write_quads_vtu};
+pub use quality::QuadQuality;
+pub use report::QuadsReport;
 pub use surface_mesh::{ModelEntity, QuadMesh, SurfacePoint, SurfaceTriangulation};
+
+use std::time::Instant;
+
+use crate::atlas::Atlas;
+use crate::crossfield::Crossfield;
+use crate::mesh::{Topology, TriMesh};
+use crate::progress::Progress;
+
+/// Quads the default size may ask for before the stage refuses the job
+/// (about 1.5 GB of working memory).
+pub const MAX_QUADS: u64 = 10_000_000;
+
+/// What the stage produces: the mesh, the model it is classified on, its
+/// measures and the report.
+#[derive(Debug, Clone)]
+pub struct QuadsResult {
+    /// The quad mesh.
+    pub mesh: QuadMesh,
+    /// The feature model.
+    pub model: QuadModel,
+    /// Its measures.
+    pub quality: QuadQuality,
+    /// The report.
+    pub report: QuadsReport,
+}
+
+/// The all-quad mesh of `surface` (the repaired input the atlas and the
+/// crossfield were computed on), aligned with `field`, at the size `opts`
+/// asks for.
+///
+/// # Errors
+/// [`QuadsError::InvalidOption`] and [`QuadsError::TooManyQuads`] for bad
+/// options, [`QuadsError::Triangulation`] when a patch cannot be
+/// triangulated, [`QuadsError::CheckFailed`] when the output fails a check
+/// (a bug), [`QuadsError::Cancelled`].
+pub fn build_quads(
+    surface: &TriMesh,
+    atlas: &Atlas,
+    field: &Crossfield,
+    opts: &QuadsOptions,
+    progress: &Progress,
+) -> Result<QuadsResult, QuadsError> {
+    opts.validate()?;
+    if field.symmetry != 4 {
+        return Err(QuadsError::InvalidOption {
+            name: "crossfield.symmetry",
+            reason: format!("quads need a cross (symmetry 4), the crossfield has symmetry {}", field.symmetry),
+        });
+    }
+    let topo = Topology::new(surface);
+    let model = quad_model(&topo, &atlas.features);
+    let diagonal = surface.bounding_box().map_or(0.0, |b| b.diagonal());
+    let size = opts.target_size(surface.mean_edge_length(), diagonal);
+    let estimated = (surface.area() / (size * size)).ceil();
+    if !(estimated <= MAX_QUADS as f64) {
+        return Err(QuadsError::TooManyQuads {
+            size,
+            estimated: estimated.min(u64::MAX as f64) as u64,
+            limit: MAX_QUADS,
+        });
+    }
+    let (tri, triangulation) =
+        triangulation::surface_triangulation(surface, &topo, atlas, field, &model, size, &progress.sub(0.0, 0.4))?;
+    progress.check()?;
+    let (mut mesh, recombination) = recombine::recombine(tri, &progress.sub(0.4, 0.6))?;
+    progress.check()?;
+    let projector = projection::SurfaceProjector::new(surface, &topo, &model);
+    let cleanup = cleanup::clean_up(&mut mesh, &projector);
+    let smoothing = smooth::smooth(&mut mesh, &projector, opts.smoothing_iterations, &progress.sub(0.6, 0.95))?;
+    let t = Instant::now();
+    if opts.order == 2 {
+        order2::add_high_order_nodes(&mut mesh, &projector);
+    }
+    let high_order_seconds = t.elapsed().as_secs_f64();
+    let t = Instant::now();
+    let quality = quality::quad_quality(&mesh, surface);
+    check::check_quad_mesh(&mesh, &quality, surface, &topo, &model)?;
+    let check_seconds = t.elapsed().as_secs_f64();
+    let singularity_indices =
+        field.singularities.iter().map(|s| (s.index * f64::from(field.symmetry)).round() as i32).collect();
+    let report = QuadsReport::new(report::ReportInputs {
+        target_size: size,
+        order: opts.order,
+        mesh: &mesh,
+        quality: &quality,
+        singularity_indices,
+        triangulation,
+        recombination,
+        cleanup,
+        smoothing,
+        high_order_seconds,
+        check_seconds,
+    });
+    Ok(QuadsResult { mesh, model, quality, report })
+}

@@ -92,6 +92,9 @@ pub struct SurfaceTriangulation {
     /// Vertices placed at crossfield singularities: `(vertex, index)` with
     /// the index in units of a quarter turn (+1: valence 3 expected, −1: 5).
     pub singular_vertices: Vec<(u32, i32)>,
+    /// Vertices placed on atlas seams (not model entities: the mesh should
+    /// cross seams; the report counts irregular vertices among these).
+    pub seam_vertices: Vec<u32>,
 }
 
 /// The quad mesh: the output of the stage.
@@ -112,4 +115,7 @@ pub struct QuadMesh {
     /// [`SurfaceTriangulation::singular_vertices`] (indices follow any
     /// renumbering of the later steps).
     pub singular_vertices: Vec<(u32, i32)>,
+    /// Vertices placed on atlas seams, as in
+    /// [`SurfaceTriangulation::seam_vertices`] (indices follow renumbering).
+    pub seam_vertices: Vec<u32>,
 }
