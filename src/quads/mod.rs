@@ -35,6 +35,7 @@ pub mod projection;
 pub mod quality;
 pub mod recombine;
 pub mod report;
+pub mod size_map;
 pub mod smooth;
 pub mod surface_mesh;
 pub mod triangulation;

@@ -1,0 +1,359 @@
+//! The conformal size map of a crossfield: the edge length `h(x)` at which
+//! the cross's two directions, scaled by `1/h`, are the gradients of a
+//! parameterization, so fronts placed along the cross at the local size
+//! close up without adding rows (a torus needs longer quads on its outer
+//! equator; a constant size there forces irregular vertices).
+//!
+//! Math. Write the cross as `u₁ = cos θ e₁ + sin θ e₂` in a local frame and
+//! `G = ∇θ` for its covariant gradient (the frame's connection included).
+//! The scaled frame `(u₁/h, u₂/h)` is closed (integrable) exactly when
+//! `∇ log h = G × n`; on the plane with the polar cross (`θ` = polar angle)
+//! this gives `h ∝ r`, the spacing of the grid of `log z`. Away from the
+//! singularities this holds exactly for a smooth field; in general `log h`
+//! is its least-squares solution, the Neumann problem
+//! `∫ ∇ψ · ∇φᵢ = ∫ (G × n) · ∇φᵢ` with P1 `ψ = log h` (pinned at one vertex
+//! per connected component). This is the conformal scaling of Gmsh's
+//! quasi-structured mesher (`computeCrossFieldConformalScaling`).
+//!
+//! Discretization. In each triangle the crossfield's Crouzeix–Raviart
+//! values, brought into the triangle frame (thesis ch. 3 §5, `F = r f`), give
+//! the angles `Θₖ = arg(Fₖ)/4` at the edge midpoints, lifted to the branch
+//! nearest `Θ₀`; the CR interpolant of those angles is linear with corner
+//! values `Θᵢ + Θᵢ₋₁ − Θᵢ₊₁`, and `G` is its gradient.
+//!
+//! `log h` diverges logarithmically at the singularities; when the field has
+//! any inside the surface, it is clamped as in Gmsh to its 5 %–95 % quantile range per
+//! component. It is then offset so
+//! that `∫ h⁻² dA` (the number of quads) equals `area / size²`, the count a
+//! constant size would give.
+
+use nalgebra::Complex;
+
+use super::error::QuadsError;
+use super::surface_mesh::SurfacePoint;
+use crate::crossfield::Crossfield;
+use crate::crossfield::frames::Discretization;
+use crate::geom::Vec3;
+use crate::linalg::{CholeskySolver, Triplets};
+use crate::mesh::components::connected_components;
+use crate::mesh::{FaceId, Topology, TriMesh};
+
+/// Fraction of `log h` values clamped at each end, per component.
+const QUANTILE: f64 = 0.05;
+
+/// Target edge length per surface vertex.
+#[derive(Debug, Clone)]
+pub struct SizeMap {
+    /// Edge length at each vertex of the surface.
+    pub size_per_vertex: Vec<f64>,
+}
+
+impl SizeMap {
+    /// The same size everywhere.
+    pub fn uniform(n_vertices: usize, size: f64) -> Self {
+        Self { size_per_vertex: vec![size; n_vertices] }
+    }
+
+    /// The size at a point of the surface (linear on its triangle).
+    pub fn at(&self, surface: &TriMesh, p: &SurfacePoint) -> f64 {
+        let t = surface.triangles[p.face.idx()];
+        (0..3).map(|i| p.bary[i] * self.size_per_vertex[t[i].idx()]).sum()
+    }
+
+    /// Smallest and largest size.
+    pub fn range(&self) -> (f64, f64) {
+        self.size_per_vertex.iter().fold((f64::INFINITY, 0.0f64), |(lo, hi), &h| (lo.min(h), hi.max(h)))
+    }
+}
+
+/// Gradients `∇λᵢ` of the barycentric coordinates of triangle `p` with unit
+/// normal `n` and area `area`.
+fn barycentric_gradients(p: &[Vec3; 3], n: &Vec3, area: f64) -> [Vec3; 3] {
+    std::array::from_fn(|i| n.cross(&(p[(i + 2) % 3] - p[(i + 1) % 3])) / (2.0 * area))
+}
+
+/// `G = ∇θ` of the cross in face `f` from the CR values in the triangle
+/// frame (module documentation); `None` where the field vanishes.
+fn cross_angle_gradient(big_f: &[Complex<f64>; 3], grads: &[Vec3; 3]) -> Option<Vec3> {
+    if big_f.iter().any(|z| !(z.norm() > 1e-12)) {
+        return None;
+    }
+    let theta0 = big_f[0].arg() / 4.0;
+    let mid: [f64; 3] = std::array::from_fn(|k| theta0 + (big_f[k] * big_f[0].conj()).arg() / 4.0);
+    let corner = |i: usize| mid[i] + mid[(i + 2) % 3] - mid[(i + 1) % 3];
+    Some((0..3).map(|i| grads[i] * corner(i)).sum())
+}
+
+/// The conformal size map of `field` on `surface`, scaled so its quad count
+/// matches the uniform `size` (module documentation).
+///
+/// # Errors
+/// [`QuadsError::Triangulation`] (patch 0) when the Laplacian cannot be
+/// factored.
+pub fn conformal_size_map(
+    surface: &TriMesh,
+    topo: &Topology,
+    field: &Crossfield,
+    size: f64,
+) -> Result<SizeMap, QuadsError> {
+    size_map_of_edge_field(surface, topo, &field.f_per_edge, has_interior_singularity(topo, field), size)
+}
+
+/// [`conformal_size_map`] of the 4-symmetric field with edge-frame values
+/// `f_per_edge` (`exp(4iθ)`, as [`Crossfield::f_per_edge`]); `clamp` clamps
+/// `log h` to its quantile range (for fields with singularities).
+///
+/// # Errors
+/// As [`conformal_size_map`].
+pub fn size_map_of_edge_field(
+    surface: &TriMesh,
+    topo: &Topology,
+    f_per_edge: &[[f64; 2]],
+    clamp: bool,
+    size: f64,
+) -> Result<SizeMap, QuadsError> {
+    let n_v = surface.n_vertices();
+    let disc = Discretization::new(surface, topo, 4);
+    let components = connected_components(topo);
+    let pinned = pinned_vertices(surface, &components.component_per_face, components.n_components);
+    let mut triplets = Triplets::new(n_v, n_v);
+    let mut rhs = vec![0.0; n_v];
+    for (f, fd) in disc.faces.iter().enumerate() {
+        if fd.area == 0.0 {
+            continue;
+        }
+        let face = FaceId::new(f);
+        let t = surface.triangles[f];
+        let p = surface.corners(face);
+        let n = surface.face_normal(face);
+        let grads = barycentric_gradients(&p, &n, fd.area);
+        for i in 0..3 {
+            for j in 0..3 {
+                let (a, b) = (t[i].idx(), t[j].idx());
+                if !pinned[a] && !pinned[b] {
+                    triplets.push(a, b, fd.area * grads[i].dot(&grads[j]));
+                }
+            }
+        }
+        let edges = topo.face_edges[f];
+        let big_f: [Complex<f64>; 3] = std::array::from_fn(|k| {
+            let [re, im] = f_per_edge[edges[k].idx()];
+            fd.rot[k] * Complex::new(re, im)
+        });
+        if let Some(g) = cross_angle_gradient(&big_f, &grads) {
+            let w = g.cross(&n);
+            for i in 0..3 {
+                rhs[t[i].idx()] += fd.area * w.dot(&grads[i]);
+            }
+        }
+    }
+    for (v, &pin) in pinned.iter().enumerate() {
+        if pin {
+            triplets.push(v, v, 1.0);
+            rhs[v] = 0.0;
+        }
+    }
+    let factor_error = |e: crate::linalg::LinalgError| QuadsError::Triangulation {
+        patch: 0,
+        reason: format!("conformal size map: the surface Laplacian cannot be factored ({e})"),
+    };
+    let matrix = triplets.to_matrix().map_err(factor_error)?;
+    let solver = CholeskySolver::new(&matrix).map_err(factor_error)?;
+    let mut columns = vec![rhs];
+    solver.solve_columns(&mut columns).map_err(factor_error)?;
+    let mut log_h = columns.pop().unwrap_or_default();
+    let vertex_component = vertex_components(surface, &components.component_per_face, n_v);
+    if clamp {
+        clamp_to_quantiles(&mut log_h, &vertex_component, components.n_components);
+    }
+    Ok(SizeMap {
+        size_per_vertex: scaled_sizes(surface, &log_h, &components.component_per_face, components.n_components, size),
+    })
+}
+
+/// True when a singularity of `field` lies off the boundary (the ones at
+/// boundary corners leave the field smooth in the domain).
+fn has_interior_singularity(topo: &Topology, field: &Crossfield) -> bool {
+    let n_v = field.index_per_vertex.len();
+    let mut on_boundary = vec![false; n_v];
+    for (e, [a, b]) in topo.edges.iter().enumerate() {
+        if topo.is_boundary_edge(crate::mesh::EdgeId::new(e)) {
+            on_boundary[a.idx()] = true;
+            on_boundary[b.idx()] = true;
+        }
+    }
+    field.singularities.iter().any(|s| !on_boundary[s.vertex.idx()])
+}
+
+/// Component of each vertex (`u32::MAX` for a vertex of no triangle).
+fn vertex_components(surface: &TriMesh, component_per_face: &[u32], n_v: usize) -> Vec<u32> {
+    let mut out = vec![u32::MAX; n_v];
+    for (t, &c) in surface.triangles.iter().zip(component_per_face) {
+        for v in t {
+            out[v.idx()] = c;
+        }
+    }
+    out
+}
+
+/// One vertex per component fixes the additive constant of the Neumann
+/// problem (its smallest vertex), plus every vertex of no triangle.
+fn pinned_vertices(surface: &TriMesh, component_per_face: &[u32], n_components: usize) -> Vec<bool> {
+    let n_v = surface.n_vertices();
+    let comp = vertex_components(surface, component_per_face, n_v);
+    let mut pinned: Vec<bool> = comp.iter().map(|&c| c == u32::MAX).collect();
+    let mut seen = vec![false; n_components];
+    for (v, &c) in comp.iter().enumerate() {
+        if c != u32::MAX && !seen[c as usize] {
+            seen[c as usize] = true;
+            pinned[v] = true;
+        }
+    }
+    pinned
+}
+
+/// Clamps `values` to their [`QUANTILE`], `1 − QUANTILE` range within each component.
+fn clamp_to_quantiles(values: &mut [f64], component: &[u32], n_components: usize) {
+    let mut per: Vec<Vec<f64>> = vec![Vec::new(); n_components];
+    for (v, &c) in values.iter().zip(component) {
+        if c != u32::MAX {
+            per[c as usize].push(*v);
+        }
+    }
+    let bounds: Vec<(f64, f64)> = per
+        .into_iter()
+        .map(|mut xs| {
+            if xs.is_empty() {
+                return (0.0, 0.0);
+            }
+            xs.sort_by(f64::total_cmp);
+            let at = |q: f64| xs[((xs.len() - 1) as f64 * q).round() as usize];
+            (at(QUANTILE), at(1.0 - QUANTILE))
+        })
+        .collect();
+    for (v, &c) in values.iter_mut().zip(component) {
+        if c != u32::MAX {
+            let (lo, hi) = bounds[c as usize];
+            *v = v.clamp(lo, hi);
+        }
+    }
+}
+
+/// `h = s·exp(log h)` with `s` per component such that `∫ h⁻² dA = A / size²`.
+fn scaled_sizes(
+    surface: &TriMesh,
+    log_h: &[f64],
+    component_per_face: &[u32],
+    n_components: usize,
+    size: f64,
+) -> Vec<f64> {
+    let h: Vec<f64> = log_h.iter().map(|l| l.exp()).collect();
+    let mut quads = vec![0.0; n_components];
+    let mut area = vec![0.0; n_components];
+    for (f, t) in surface.triangles.iter().enumerate() {
+        let a = surface.face_area(FaceId::new(f));
+        let mean = (h[t[0].idx()] + h[t[1].idx()] + h[t[2].idx()]) / 3.0;
+        let c = component_per_face[f] as usize;
+        quads[c] += a / (mean * mean);
+        area[c] += a;
+    }
+    let vertex_component = vertex_components(surface, component_per_face, h.len());
+    h.iter()
+        .zip(&vertex_component)
+        .map(|(&hv, &c)| {
+            if c == u32::MAX || !(quads[c as usize] > 0.0) {
+                return size;
+            }
+            let s = (quads[c as usize] * size * size / area[c as usize]).sqrt();
+            s * hv
+        })
+        .collect()
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::crossfield::frames::{edge_direction, edge_normal};
+    use crate::mesh::{EdgeId, fixtures};
+
+    /// Edge values `exp(4iθ)` of the cross whose first branch at a point `x`
+    /// is `direction(x)` (projected on each edge's tangent plane).
+    fn analytic_field(mesh: &TriMesh, topo: &Topology, direction: impl Fn(&Vec3) -> Vec3) -> Vec<[f64; 2]> {
+        (0..topo.n_edges())
+            .map(|e| {
+                let id = EdgeId::new(e);
+                let [a, b] = topo.edges[e];
+                let mid = (mesh.positions[a.idx()] + mesh.positions[b.idx()]) / 2.0;
+                let (ex, n) = (edge_direction(mesh, topo, id), edge_normal(mesh, topo, id));
+                let d = direction(&mid);
+                let theta = d.dot(&n.cross(&ex)).atan2(d.dot(&ex));
+                [(4.0 * theta).cos(), (4.0 * theta).sin()]
+            })
+            .collect()
+    }
+
+    fn size_map_of(mesh: &TriMesh, direction: impl Fn(&Vec3) -> Vec3) -> SizeMap {
+        let topo = Topology::new(mesh);
+        let f = analytic_field(mesh, &topo, direction);
+        size_map_of_edge_field(mesh, &topo, &f, false, 0.1).expect("size map")
+    }
+
+    /// Coefficient of variation of `xs`.
+    fn variation(xs: &[f64]) -> f64 {
+        let n = xs.len() as f64;
+        let mean = xs.iter().sum::<f64>() / n;
+        (xs.iter().map(|x| (x - mean).powi(2)).sum::<f64>() / n).sqrt() / mean
+    }
+
+    /// Tangent of the circles around the `z` axis.
+    fn around_z(x: &Vec3) -> Vec3 {
+        Vec3::new(-x.y, x.x, 0.0)
+    }
+
+    #[test]
+    fn a_constant_cross_gets_the_uniform_size() {
+        let c = 0.3f64;
+        let map = size_map_of(&fixtures::square(12), |_| Vec3::new(c.cos(), c.sin(), 0.0));
+        assert!(map.size_per_vertex.iter().all(|h| (h - 0.1).abs() < 1e-9), "{:?}", map.range());
+    }
+
+    /// The polar cross on an annulus is integrable with `h ∝ r` (the grid
+    /// of `log z`).
+    #[test]
+    fn the_polar_cross_gets_a_size_proportional_to_the_radius() {
+        let mesh = fixtures::annulus(0.5, 2.0, 96, 24);
+        let map = size_map_of(&mesh, around_z);
+        let ratio: Vec<f64> = mesh.positions.iter().zip(&map.size_per_vertex).map(|(p, h)| h / p.xy().norm()).collect();
+        let (lo, hi) = map.range();
+        assert!(hi / lo > 3.0, "the size must follow r ∈ [0.5, 2]: range {lo}..{hi}");
+        assert!(variation(&ratio) < 0.02, "h / r varies by {}", variation(&ratio));
+    }
+
+    /// On a torus the principal-direction cross (parallels and meridians)
+    /// is integrable with `h ∝ ρ`, the distance to the axis (parallels of
+    /// length 2πρ, all with the same number of quads).
+    #[test]
+    fn the_principal_cross_of_a_torus_gets_a_size_proportional_to_the_distance_to_its_axis() {
+        let mesh = fixtures::torus(2.0, 1.0, 96, 48);
+        let map = size_map_of(&mesh, around_z);
+        let ratio: Vec<f64> = mesh.positions.iter().zip(&map.size_per_vertex).map(|(p, h)| h / p.xy().norm()).collect();
+        let (lo, hi) = map.range();
+        assert!(hi / lo > 2.5, "the size must follow ρ ∈ [1, 3]: range {lo}..{hi}");
+        assert!(variation(&ratio) < 0.02, "h / ρ varies by {}", variation(&ratio));
+    }
+
+    #[test]
+    fn the_quad_count_of_the_map_matches_the_uniform_size() {
+        let mesh = fixtures::annulus(0.5, 2.0, 96, 24);
+        let map = size_map_of(&mesh, around_z);
+        let quads: f64 = (0..mesh.n_faces())
+            .map(|f| {
+                let t = mesh.triangles[f];
+                let h = (0..3).map(|i| map.size_per_vertex[t[i].idx()]).sum::<f64>() / 3.0;
+                mesh.face_area(FaceId::new(f)) / (h * h)
+            })
+            .sum();
+        let uniform = mesh.area() / 0.01;
+        assert!((quads / uniform - 1.0).abs() < 1e-9, "{quads} vs {uniform}");
+    }
+}

@@ -1,0 +1,203 @@
+//! Quads stage known answers (issue 13): the valences a quad mesh must have
+//! follow from the topology and the crossfield, not from the code.
+//!
+//! - Unit square with a constant cross: a regular grid, no irregular vertex,
+//!   scaled Jacobian ≥ 0.95.
+//! - Unit disk: 4 interior valence-3 vertices (4·χ = 4, the crossfield's four
+//!   +1/4 singularities), each near one of them.
+//! - Cube with its feature edges: the 8 corners are the only irregular
+//!   vertices, of valence 3.
+//! - Sphere: at most 10 irregular vertices, a valence-3 vertex near each of
+//!   the 8 square-antiprism singularities, none of valence ≥ 6.
+//! - Torus (χ = 0, no singularity): at most 8 irregular vertices.
+//!
+//! Valences are counted here from the quads themselves (edges used by one
+//! quad are boundary edges), independently of the stage's own report.
+
+mod crossfield_common;
+
+use std::collections::{BTreeMap, BTreeSet};
+
+use meshatlas::atlas::{AtlasOptions, build_atlas};
+use meshatlas::crossfield::{Crossfield, CrossfieldOptions, compute_crossfield};
+use meshatlas::geom::{Vec3, angle_between};
+use meshatlas::mesh::{Topology, TriMesh, fixtures};
+use meshatlas::progress::Progress;
+use meshatlas::quads::{QuadsOptions, QuadsResult, build_quads};
+
+/// Atlas, crossfield (aligned with the atlas's feature edges, as the
+/// pipeline does) and quads of `mesh`.
+fn quads_of(mesh: &TriMesh, opts: &QuadsOptions) -> (QuadsResult, Crossfield) {
+    let atlas = build_atlas(mesh, &AtlasOptions::default(), &Progress::none()).expect("atlas");
+    let topo = Topology::new(mesh);
+    let field = compute_crossfield(
+        mesh,
+        &topo,
+        &atlas.features.is_feature_edge,
+        &CrossfieldOptions::default(),
+        &Progress::none(),
+    )
+    .expect("crossfield");
+    let quads = build_quads(mesh, &atlas, &field, opts, &Progress::none()).expect("quads");
+    (quads, field)
+}
+
+/// A shared mesh that CI provides beside the repository.
+fn shared(rel: &str) -> TriMesh {
+    let path = crossfield_common::data_path(rel).unwrap_or_else(|| panic!("../shared/data/{rel} is missing"));
+    crossfield_common::load(&path)
+}
+
+/// Valence and boundary flag of every quad corner vertex, and the angle
+/// (radians) the quads make at each boundary vertex.
+struct Valences {
+    valence: BTreeMap<u32, usize>,
+    boundary: BTreeSet<u32>,
+    boundary_angle: BTreeMap<u32, f64>,
+}
+
+/// Counts edges per vertex from the quads of `result`.
+fn valences(result: &QuadsResult) -> Valences {
+    let mut edge_uses: BTreeMap<(u32, u32), usize> = BTreeMap::new();
+    for q in &result.mesh.quads {
+        for i in 0..4 {
+            let (a, b) = (q[i], q[(i + 1) % 4]);
+            *edge_uses.entry((a.min(b), a.max(b))).or_default() += 1;
+        }
+    }
+    let mut valence: BTreeMap<u32, usize> = BTreeMap::new();
+    let mut boundary = BTreeSet::new();
+    for (&(a, b), &uses) in &edge_uses {
+        assert!(uses <= 2, "edge ({a}, {b}) is used by {uses} quads");
+        *valence.entry(a).or_default() += 1;
+        *valence.entry(b).or_default() += 1;
+        if uses == 1 {
+            boundary.insert(a);
+            boundary.insert(b);
+        }
+    }
+    let p = &result.mesh.vertices.positions;
+    let mut boundary_angle: BTreeMap<u32, f64> = BTreeMap::new();
+    for q in &result.mesh.quads {
+        for i in 0..4 {
+            let v = q[i];
+            if boundary.contains(&v) {
+                let (a, b) = (p[q[(i + 1) % 4] as usize] - p[v as usize], p[q[(i + 3) % 4] as usize] - p[v as usize]);
+                *boundary_angle.entry(v).or_default() += angle_between(&a, &b);
+            }
+        }
+    }
+    Valences { valence, boundary, boundary_angle }
+}
+
+impl Valences {
+    /// Interior vertices whose valence is not 4.
+    fn interior_irregular(&self) -> Vec<(u32, usize)> {
+        self.valence.iter().filter(|(v, d)| !self.boundary.contains(v) && **d != 4).map(|(v, d)| (*v, *d)).collect()
+    }
+
+    /// Boundary vertices whose valence differs from the one their angle
+    /// asks for (`round(θ / 90°) + 1`: 2 at a right-angle corner, 3 on a
+    /// straight boundary).
+    fn boundary_irregular(&self) -> Vec<(u32, usize)> {
+        self.boundary
+            .iter()
+            .filter_map(|v| {
+                let expected = (self.boundary_angle[v] / std::f64::consts::FRAC_PI_2).round() as usize + 1;
+                (self.valence[v] != expected).then_some((*v, self.valence[v]))
+            })
+            .collect()
+    }
+}
+
+/// Minimum over quads of the scaled Jacobian against the `z` axis (planar inputs).
+fn min_planar_scaled_jacobian(result: &QuadsResult) -> f64 {
+    let p = &result.mesh.vertices.positions;
+    let mut worst = f64::INFINITY;
+    for q in &result.mesh.quads {
+        for i in 0..4 {
+            let c = p[q[i] as usize];
+            let (a, b) = (p[q[(i + 1) % 4] as usize] - c, p[q[(i + 3) % 4] as usize] - c);
+            worst = worst.min(a.cross(&b).z / (a.norm() * b.norm()));
+        }
+    }
+    worst
+}
+
+/// Distance from vertex `v` to the nearest crossfield singularity.
+fn distance_to_singularity(result: &QuadsResult, field: &Crossfield, v: u32) -> f64 {
+    let x: Vec3 = result.mesh.vertices.positions[v as usize];
+    field.singularities.iter().map(|s| (s.position - x).norm()).fold(f64::INFINITY, f64::min)
+}
+
+#[test]
+fn unit_square_with_a_constant_cross_is_a_regular_grid() {
+    let mesh = fixtures::square(16);
+    let (result, field) = quads_of(&mesh, &QuadsOptions { size: Some(0.1), ..Default::default() });
+    assert!(field.singularities.is_empty(), "the square's aligned cross is constant");
+    let v = valences(&result);
+    assert_eq!(v.interior_irregular(), vec![], "interior irregular vertices");
+    assert_eq!(v.boundary_irregular(), vec![], "boundary irregular vertices");
+    let sj = min_planar_scaled_jacobian(&result);
+    assert!(sj >= 0.95, "min scaled Jacobian {sj}");
+}
+
+#[test]
+fn unit_disk_has_exactly_four_valence_3_vertices_at_the_singularities() {
+    let mesh = shared("gmsh/disk_3k.stl");
+    let (result, field) = quads_of(&mesh, &QuadsOptions::default());
+    assert_eq!(field.singularities.len(), 4);
+    let size = result.report.target_size;
+    let v = valences(&result);
+    let irregular = v.interior_irregular();
+    assert_eq!(irregular.len(), 4, "interior irregular vertices {irregular:?}");
+    for (vertex, valence) in irregular {
+        assert_eq!(valence, 3);
+        let d = distance_to_singularity(&result, &field, vertex);
+        assert!(d <= size, "valence-3 vertex {vertex} is {d} from the nearest singularity (size {size})");
+    }
+    assert!(min_planar_scaled_jacobian(&result) > 0.0);
+}
+
+#[test]
+fn cube_corners_are_the_only_irregular_vertices() {
+    let mesh = fixtures::cube(6);
+    let (result, _) = quads_of(&mesh, &QuadsOptions { size: Some(0.25), ..Default::default() });
+    let v = valences(&result);
+    assert!(v.boundary.is_empty(), "the cube is closed");
+    let irregular = v.interior_irregular();
+    assert_eq!(irregular.len(), 8, "irregular vertices {irregular:?}");
+    let p = &result.mesh.vertices.positions;
+    for (vertex, valence) in irregular {
+        assert_eq!(valence, 3);
+        let x = p[vertex as usize];
+        assert!(x.iter().all(|c| (c.abs() - 1.0).abs() < 1e-9), "valence-3 vertex {vertex} at {x:?} is not a corner");
+    }
+}
+
+#[test]
+fn sphere_has_at_most_10_irregular_vertices_with_one_at_each_singularity() {
+    let mesh = shared("gmsh/sphere_3k.stl");
+    let (result, field) = quads_of(&mesh, &QuadsOptions::default());
+    assert_eq!(field.singularities.len(), 8);
+    let size = result.report.target_size;
+    let v = valences(&result);
+    let irregular = v.interior_irregular();
+    assert!(irregular.len() <= 10, "{} irregular vertices: {irregular:?}", irregular.len());
+    assert!(irregular.iter().all(|(_, d)| *d < 6), "valence ≥ 6 in {irregular:?}");
+    for s in &field.singularities {
+        let near = irregular
+            .iter()
+            .any(|(vx, d)| *d == 3 && (result.mesh.vertices.positions[*vx as usize] - s.position).norm() <= size);
+        assert!(near, "no valence-3 vertex within {size} of the singularity at {:?}", s.position);
+    }
+}
+
+#[test]
+fn torus_has_at_most_8_irregular_vertices() {
+    let mesh = shared("gmsh/torus_20k.stl");
+    let (result, field) = quads_of(&mesh, &QuadsOptions::default());
+    assert!(field.singularities.is_empty());
+    let irregular = valences(&result).interior_irregular();
+    assert!(irregular.len() <= 8, "{} irregular vertices: {irregular:?}", irregular.len());
+}
