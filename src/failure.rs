@@ -128,7 +128,8 @@ failure_kinds! {
     NonOrientableSurface = "non-orientable-surface",
     /// The surface is not closed, so it encloses no volume.
     OpenSurface = "open-surface",
-    /// The volume target size gives no or too many tetrahedra.
+    /// The target size gives no or too many elements (tetrahedra of the
+    /// frames stage, quads of the quads stage).
     InvalidTargetSize = "invalid-target-size",
 
     // Failures of the job around the stages.

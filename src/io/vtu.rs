@@ -7,8 +7,9 @@
 //! `<CellData>`, `<Points>` (Float64 × 3) and `<Cells>` (`connectivity`,
 //! `offsets` = end of each cell in `connectivity`, `types`). Connectivity and
 //! offsets are `Int32` when every index fits, `Int64` otherwise.
-//! Cell types: vertex 1, line 3, triangle 5, tetra 10. Cell data follow the
-//! cells block by block, in the order of [`VtuMesh::cells`].
+//! Cell types: vertex 1, line 3, triangle 5, quad 9, tetra 10, biquadratic
+//! quad 28. Cell data follow the cells block by block, in the order of
+//! [`VtuMesh::cells`].
 //!
 //! # Encodings ([`VtuEncoding`])
 //! - `Ascii`: values as text (shortest round-trip floats); biggest, slowest.
@@ -96,6 +97,11 @@ pub enum CellBlock<'a> {
     Triangles(&'a [[VertexId; 3]]),
     /// VTK_TETRA (10).
     Tetrahedra(&'a [[VertexId; 4]]),
+    /// VTK_QUAD (9), corners counter-clockwise.
+    Quads(&'a [[VertexId; 4]]),
+    /// VTK_BIQUADRATIC_QUAD (28): 4 corners, the mid nodes of edges 01, 12,
+    /// 23, 30, the centre (Gmsh's 9-node order too).
+    BiquadraticQuads(&'a [[VertexId; 9]]),
 }
 
 impl CellBlock<'_> {
@@ -106,6 +112,8 @@ impl CellBlock<'_> {
             Self::Lines(c) => c.len(),
             Self::Triangles(c) => c.len(),
             Self::Tetrahedra(c) => c.len(),
+            Self::Quads(c) => c.len(),
+            Self::BiquadraticQuads(c) => c.len(),
         }
     }
 
@@ -121,6 +129,8 @@ impl CellBlock<'_> {
             Self::Lines(_) => 2,
             Self::Triangles(_) => 3,
             Self::Tetrahedra(_) => 4,
+            Self::Quads(_) => 4,
+            Self::BiquadraticQuads(_) => 9,
         }
     }
 
@@ -131,6 +141,8 @@ impl CellBlock<'_> {
             Self::Lines(_) => 3,
             Self::Triangles(_) => 5,
             Self::Tetrahedra(_) => 10,
+            Self::Quads(_) => 9,
+            Self::BiquadraticQuads(_) => 28,
         }
     }
 
@@ -141,6 +153,8 @@ impl CellBlock<'_> {
             Self::Lines(c) => c.as_flattened(),
             Self::Triangles(c) => c.as_flattened(),
             Self::Tetrahedra(c) => c.as_flattened(),
+            Self::Quads(c) => c.as_flattened(),
+            Self::BiquadraticQuads(c) => c.as_flattened(),
         }
     }
 }

@@ -72,7 +72,8 @@ pub struct MemoryEstimate {
 /// the default sizes.
 pub fn peak_memory_estimate(sizes: &InputSizes, params: &PipelineParams) -> MemoryEstimate {
     let triangles = sizes.n_triangles.min(params.load.max_triangles as u64);
-    let runs = |s: StageName| params.stages.contains(&s);
+    let stages = params.stages_to_run().0;
+    let runs = |s: StageName| stages.contains(&s);
     let per = |n: u64, bytes: u64| n.saturating_mul(bytes);
     let load = per(triangles, LOAD_BYTES_PER_TRIANGLE);
     let atlas = if runs(StageName::Atlas) { per(triangles, ATLAS_BYTES_PER_TRIANGLE) } else { 0 };
@@ -128,6 +129,9 @@ mod tests {
         assert!(budget.peak >= 367 << 20, "{budget:?}");
         let capped = est(100, r#"{"stages":["frames"],"frames":{"max_tets":1000}}"#);
         assert!(capped.peak < 32 << 20, "{capped:?}");
+        // Quads run the crossfield first: at least its peak.
+        let quads = est(1_000_000, r#"{"stages":["quads"]}"#);
+        assert!(quads.peak >= est(1_000_000, r#"{"stages":["crossfield"]}"#).peak, "{quads:?}");
         // The largest stage, not the sum; the triangle cap applies.
         let both = est(1_000_000, r#"{"stages":["atlas","crossfield"]}"#);
         assert_eq!(both.peak, est(1_000_000, r#"{"stages":["crossfield"]}"#).peak);

@@ -12,6 +12,7 @@ use crate::crossfield::{CrossfieldError, CrossfieldOptions, validate_options};
 use crate::frames::{FramesError, FramesOptions};
 use crate::io::msh_output::OutputOptions;
 use crate::io::{IoError, LoadOptions};
+use crate::quads::{QuadsError, QuadsOptions};
 
 /// Parameters of one pipeline run.
 ///
@@ -32,6 +33,8 @@ pub struct PipelineParams {
     pub crossfield: CrossfieldOptions,
     /// Options of the frames stage.
     pub frames: FramesOptions,
+    /// Options of the quads stage.
+    pub quads: QuadsOptions,
     /// How the mesh artifacts are written (MSH version, binary).
     pub output: OutputOptions,
 }
@@ -46,11 +49,15 @@ pub enum StageName {
     Crossfield,
     /// Volume mesh and smooth 3D frame field with its singular edges (thesis ch. 4).
     Frames,
+    /// All-quadrilateral surface mesh aligned with the crossfield (needs
+    /// the atlas and the crossfield, run first when not requested).
+    Quads,
 }
 
 impl StageName {
     /// Stages this build can run, in pipeline order.
-    pub const ALL: &'static [StageName] = &[StageName::Atlas, StageName::Crossfield, StageName::Frames];
+    pub const ALL: &'static [StageName] =
+        &[StageName::Atlas, StageName::Crossfield, StageName::Frames, StageName::Quads];
 
     /// The lowercase name used in JSON, reports and progress.
     pub fn as_str(self) -> &'static str {
@@ -58,6 +65,15 @@ impl StageName {
             StageName::Atlas => "atlas",
             StageName::Crossfield => "crossfield",
             StageName::Frames => "frames",
+            StageName::Quads => "quads",
+        }
+    }
+
+    /// Stages whose products this stage reads (they run before it).
+    pub fn dependencies(self) -> &'static [StageName] {
+        match self {
+            StageName::Quads => &[StageName::Atlas, StageName::Crossfield],
+            StageName::Atlas | StageName::Crossfield | StageName::Frames => &[],
         }
     }
 
@@ -84,6 +100,28 @@ impl<'de> Deserialize<'de> for StageName {
     fn deserialize<D: serde::Deserializer<'de>>(d: D) -> Result<Self, D::Error> {
         let name = String::deserialize(d)?;
         StageName::parse(&name).map_err(serde::de::Error::custom)
+    }
+}
+
+impl PipelineParams {
+    /// The stages to run, in pipeline order without repeats, with the
+    /// dependencies of the requested ones ([`StageName::dependencies`]), and
+    /// the dependencies that were added because they were not requested.
+    pub fn stages_to_run(&self) -> (Vec<StageName>, Vec<StageName>) {
+        let mut run: Vec<StageName> = self.stages.clone();
+        let mut added: Vec<StageName> = Vec::new();
+        for s in &self.stages {
+            for d in s.dependencies() {
+                if !run.contains(d) {
+                    run.push(*d);
+                    added.push(*d);
+                }
+            }
+        }
+        run.sort();
+        run.dedup();
+        added.sort();
+        (run, added)
     }
 }
 
@@ -185,6 +223,12 @@ pub fn parse_params(json: &[u8]) -> Result<PipelineParams, ParamsError> {
         }
         other => ParamsError { field: Some("frames".into()), message: other.to_string(), syntax: false },
     })?;
+    params.quads.validate().map_err(|e| match e {
+        QuadsError::InvalidOption { name, reason } => {
+            ParamsError { field: Some(format!("quads.{name}")), message: reason, syntax: false }
+        }
+        other => ParamsError { field: Some("quads".into()), message: other.to_string(), syntax: false },
+    })?;
     params.output.validate().map_err(|(name, reason)| ParamsError {
         field: Some(format!("output.{name}")),
         message: reason,
@@ -250,10 +294,31 @@ mod tests {
         assert_eq!(p.stages, vec![StageName::Frames, StageName::Atlas, StageName::Crossfield]);
         let e = parse_params(br#"{"stages": ["atlas", "bogus"]}"#).unwrap_err();
         assert_eq!(e.field.as_deref(), Some("stages[1]"), "{e:?}");
-        assert!(e.message.contains("unknown stage `bogus` (available stages: atlas, crossfield, frames)"), "{e:?}");
+        assert!(e.message.contains("unknown stage `bogus` (available stages: atlas, crossfield, frames, quads)"), "{e:?}");
         for s in StageName::ALL {
             assert_eq!(StageName::parse(s.as_str()), Ok(*s));
         }
+    }
+
+    #[test]
+    fn quads_add_the_atlas_and_the_crossfield_when_not_requested() {
+        let p = parse_params(br#"{"stages": ["quads"]}"#).unwrap();
+        assert_eq!(p.stages_to_run(), (vec![StageName::Atlas, StageName::Crossfield, StageName::Quads], vec![StageName::Atlas, StageName::Crossfield]));
+        let p = parse_params(br#"{"stages": ["quads", "crossfield", "frames"]}"#).unwrap();
+        let all = vec![StageName::Atlas, StageName::Crossfield, StageName::Frames, StageName::Quads];
+        assert_eq!(p.stages_to_run(), (all, vec![StageName::Atlas]));
+        let p = parse_params(br#"{"stages": ["crossfield", "crossfield"]}"#).unwrap();
+        assert_eq!(p.stages_to_run(), (vec![StageName::Crossfield], vec![]));
+    }
+
+    #[test]
+    fn quads_options_are_checked_and_unknown_ones_named() {
+        let e = parse_params(br#"{"quads": {"order": 3}}"#).unwrap_err();
+        assert_eq!(e.field.as_deref(), Some("quads.order"), "{e:?}");
+        let e = parse_params(br#"{"quads": {"sise": 1}}"#).unwrap_err();
+        assert_eq!(e.field.as_deref(), Some("quads.sise"), "{e:?}");
+        let p = parse_params(br#"{"quads": {"size": 0.5, "order": 2, "smoothing_iterations": 3}}"#).unwrap();
+        assert_eq!((p.quads.size, p.quads.order, p.quads.smoothing_iterations), (Some(0.5), 2, 3));
     }
 
     #[test]

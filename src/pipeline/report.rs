@@ -14,6 +14,9 @@ use crate::atlas::AtlasReport;
 use crate::crossfield::CrossfieldReport;
 use crate::frames::FramesReport;
 use crate::mesh::repair::RepairReport;
+use crate::quads::QuadsReport;
+
+use super::params::StageName;
 
 /// What was read.
 #[derive(Debug, Clone, PartialEq, Serialize)]
@@ -63,6 +66,9 @@ pub struct PipelineReport {
     pub repair: RepairReport,
     /// Summary of each stage run, by stage name.
     pub stages: StageReports,
+    /// Stages that ran without being requested because a requested stage
+    /// needs them (`quads` adds `atlas` and `crossfield`), in pipeline order.
+    pub stages_added: Vec<StageName>,
     /// Wall seconds per step, in the order run.
     pub timings: Vec<StepTiming>,
     /// Files written (besides `report.json` itself).
@@ -80,10 +86,12 @@ pub enum StageReport {
     Crossfield(Box<CrossfieldReport>),
     /// The frames stage.
     Frames(Box<FramesReport>),
+    /// The quads stage.
+    Quads(Box<QuadsReport>),
 }
 
 /// The reports of the stages that ran, serialized as an object keyed by
-/// stage name (`atlas`, `crossfield`, `frames`; absent when the stage did
+/// stage name (`atlas`, `crossfield`, `frames`, `quads`; absent when the stage did
 /// not run), in pipeline order.
 #[derive(Debug, Clone, Default, Serialize)]
 pub struct StageReports {
@@ -96,6 +104,9 @@ pub struct StageReports {
     /// The frames stage's report.
     #[serde(skip_serializing_if = "Option::is_none")]
     pub frames: Option<FramesReport>,
+    /// The quads stage's report.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub quads: Option<QuadsReport>,
 }
 
 impl StageReports {
@@ -105,12 +116,13 @@ impl StageReports {
             StageReport::Atlas(r) => self.atlas = Some(*r),
             StageReport::Crossfield(r) => self.crossfield = Some(*r),
             StageReport::Frames(r) => self.frames = Some(*r),
+            StageReport::Quads(r) => self.quads = Some(*r),
         }
     }
 
     /// True when no stage ran.
     pub fn is_empty(&self) -> bool {
-        self.atlas.is_none() && self.crossfield.is_none() && self.frames.is_none()
+        self.atlas.is_none() && self.crossfield.is_none() && self.frames.is_none() && self.quads.is_none()
     }
 }
 
@@ -138,6 +150,11 @@ impl PipelineReport {
         lines.extend(s.atlas.as_ref().map(atlas_line));
         lines.extend(s.crossfield.as_ref().map(crossfield_line));
         lines.extend(s.frames.as_ref().map(frames_line));
+        lines.extend(s.quads.as_ref().map(quads_line));
+        if !self.stages_added.is_empty() {
+            let added: Vec<&str> = self.stages_added.iter().map(|s| s.as_str()).collect();
+            lines.push(format!("added      {} (needed by the requested stages)", added.join(", ")));
+        }
         lines
     }
 }
@@ -200,6 +217,24 @@ fn frames_line(f: &FramesReport) -> String {
     )
 }
 
+/// Quads, irregular vertices against the singularities, worst shape.
+fn quads_line(q: &QuadsReport) -> String {
+    format!(
+        "quads      {} quads (order {}), {} triangles, {} vertices, {} irregular ({} singularities, excess {}), \
+         scaled Jacobian min {:.3} p5 {:.3}, {} inverted",
+        q.n_quads,
+        q.order,
+        q.n_triangles,
+        q.n_vertices,
+        q.n_irregular_vertices,
+        q.n_singularities,
+        q.irregular_excess,
+        q.scaled_jacobian_min,
+        q.scaled_jacobian_p5,
+        q.n_inverted,
+    )
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -217,6 +252,7 @@ mod tests {
             },
             repair,
             stages,
+            stages_added: vec![],
             timings: vec![],
             artifacts: vec![],
             total_seconds: 0.0,
@@ -271,5 +307,22 @@ mod tests {
         let cf = lines.iter().find(|l| l.starts_with("crossfield ")).unwrap();
         assert!(cf.contains("8 singularities, index sum 2 (χ = 2)") && cf.ends_with(", converged"), "{cf}");
         assert!(!lines.iter().any(|l| l.starts_with("atlas ") || l.starts_with("frames ")), "{lines:?}");
+        assert!(!lines.iter().any(|l| l.starts_with("quads ") || l.starts_with("added ")), "{lines:?}");
+    }
+
+    #[test]
+    fn quads_get_a_summary_line_and_added_stages_are_named() {
+        let mut stages = StageReports::default();
+        let q = QuadsReport { n_quads: 96, order: 1, n_vertices: 98, n_irregular_vertices: 8, n_singularities: 8, ..Default::default() };
+        stages.insert(StageReport::Quads(Box::new(q)));
+        let mut r = report(RepairReport::default(), stages);
+        r.stages_added = vec![StageName::Atlas, StageName::Crossfield];
+        let lines = r.summary_lines();
+        let quads = lines.iter().find(|l| l.starts_with("quads ")).unwrap();
+        assert!(quads.contains("96 quads (order 1), 0 triangles, 98 vertices, 8 irregular (8 singularities, excess 0)"), "{quads}");
+        assert!(lines.iter().any(|l| l == "added      atlas, crossfield (needed by the requested stages)"), "{lines:?}");
+        let v = serde_json::to_value(&r).unwrap();
+        assert_eq!(v["stages_added"], serde_json::json!(["atlas", "crossfield"]));
+        assert_eq!(v["stages"]["quads"]["n_quads"], 96);
     }
 }

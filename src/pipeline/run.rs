@@ -7,6 +7,10 @@
 //! pipeline calls `progress.check()` between steps, so a cancel stops it at
 //! the next boundary at the latest (stages check more often inside).
 //!
+//! Stages run in [`StageName`] order; a requested stage's dependencies
+//! ([`StageName::dependencies`]: quads needs atlas and crossfield) run
+//! first when not requested, and the report lists them (`stages_added`).
+//!
 //! Adding a stage: a [`StageName`] variant, an options field in
 //! [`PipelineParams`], an output field in [`Products`] if later stages need
 //! it, and one arm in [`run_stage`] calling the stage's function, which
@@ -59,6 +63,10 @@ pub struct Products {
     pub volume: Option<TetMesh>,
     /// Feature edges of the surface, once a stage has detected them.
     pub features: Option<crate::atlas::features::Features>,
+    /// The atlas, kept when a later stage (quads) reads it.
+    pub atlas: Option<crate::atlas::Atlas>,
+    /// The crossfield, kept when a later stage (quads) reads it.
+    pub crossfield: Option<crate::crossfield::Crossfield>,
 }
 
 /// Runs one stage.
@@ -73,6 +81,7 @@ fn run_stage(
         StageName::Atlas => super::stages::run_atlas(params, products, out_dir, progress),
         StageName::Crossfield => super::stages::run_crossfield(params, products, out_dir, progress),
         StageName::Frames => super::stages::run_frames(params, products, out_dir, progress),
+        StageName::Quads => super::stages::run_quads(params, products, out_dir, progress),
     }
 }
 
@@ -176,11 +185,14 @@ pub fn run_pipeline(
         n_tets: loaded.volume.as_ref().map(|v| v.tets.len()),
     };
     let repair = loaded.repair;
-    let mut products = Products { surface: loaded.surface, volume: loaded.volume, features: None };
+    let mut products =
+        Products { surface: loaded.surface, volume: loaded.volume, features: None, atlas: None, crossfield: None };
 
-    let mut stages: Vec<StageName> = params.stages.clone();
-    stages.sort();
-    stages.dedup();
+    let (stages, stages_added) = params.stages_to_run();
+    if !stages_added.is_empty() {
+        let added: Vec<&str> = stages_added.iter().map(|s| s.as_str()).collect();
+        tracing::info!(?added, "stages added because requested stages need them");
+    }
     let mut reports = StageReports::default();
     let mut artifacts = Vec::new();
     let share = 0.7 / stages.len().max(1) as f64;
@@ -218,6 +230,7 @@ pub fn run_pipeline(
         input: input_info,
         repair,
         stages: reports,
+        stages_added,
         timings,
         artifacts: all,
         total_seconds: start.elapsed().as_secs_f64(),

@@ -18,9 +18,10 @@ use crate::frames::{FramesError, compute_frame_field, write_frames_vtu, write_si
 use crate::io::WriteError;
 use crate::mesh::{Topology, TriMesh};
 use crate::progress::Progress;
+use crate::quads::{QuadsError, build_quads, write_quads_msh, write_quads_vtu};
 
 use super::error::PipelineError;
-use super::params::PipelineParams;
+use super::params::{PipelineParams, StageName};
 use super::report::StageReport;
 use super::run::{Products, StageOutput};
 
@@ -71,8 +72,12 @@ pub fn run_atlas(
     );
     let artifacts = vec![msh?, vtu?, uv?];
     let write_seconds = write_start.elapsed().as_secs_f64();
-    let report = StageReport::Atlas(Box::new(atlas.report));
-    products.features = Some(atlas.features);
+    let report = StageReport::Atlas(Box::new(atlas.report.clone()));
+    products.features = Some(atlas.features.clone());
+    // Later stages (quads) read the atlas; without them it is dropped now.
+    if params.stages_to_run().0.contains(&StageName::Quads) {
+        products.atlas = Some(atlas);
+    }
     Ok(StageOutput { report, artifacts, write_seconds })
 }
 
@@ -103,7 +108,10 @@ pub fn run_crossfield(
         write_artifact(out_dir, "crossfield.msh", |w| write_crossfield_msh_as(&field, surface, w, &params.output))?,
     ];
     let write_seconds = write_start.elapsed().as_secs_f64();
-    let report = StageReport::Crossfield(Box::new(field.report));
+    let report = StageReport::Crossfield(Box::new(field.report.clone()));
+    if params.stages_to_run().0.contains(&StageName::Quads) {
+        products.crossfield = Some(field);
+    }
     Ok(StageOutput { report, artifacts, write_seconds })
 }
 
@@ -134,4 +142,60 @@ pub fn run_frames(
     let write_seconds = write_start.elapsed().as_secs_f64();
     let report = StageReport::Frames(Box::new(field.report));
     Ok(StageOutput { report, artifacts, write_seconds })
+}
+
+/// The failure of the quads stage: invalid options (only the crossfield's
+/// symmetry reaches here, the options are checked with the parameters) as
+/// invalid parameters, a size asking for too many quads as the frames
+/// stage's too many tetrahedra, everything else (a failed check is a bug)
+/// as a stage failure.
+fn quads_failure(e: QuadsError) -> PipelineError {
+    match e {
+        QuadsError::Cancelled(_) => PipelineError::Cancelled,
+        QuadsError::InvalidOption { .. } => PipelineError::stage("quads", FailureKind::InvalidParams, e.to_string()),
+        QuadsError::TooManyQuads { .. } => PipelineError::stage("quads", FailureKind::InvalidTargetSize, e.to_string()),
+        QuadsError::Triangulation { .. } | QuadsError::CheckFailed { .. } => {
+            PipelineError::stage("quads", FailureKind::StageFailed, e.to_string())
+        }
+    }
+}
+
+/// Stage 4: the all-quad surface mesh, from the atlas and the crossfield
+/// of the earlier stages; artifacts `quads.msh`, `quads.vtu`.
+pub fn run_quads(
+    params: &PipelineParams,
+    products: &mut Products,
+    out_dir: &Path,
+    progress: &Progress,
+) -> Result<StageOutput, PipelineError> {
+    let missing = |what: &str| {
+        PipelineError::stage("quads", FailureKind::InternalError, format!("the {what} stage did not run before quads"))
+    };
+    let atlas = products.atlas.as_ref().ok_or_else(|| missing("atlas"))?;
+    let field = products.crossfield.as_ref().ok_or_else(|| missing("crossfield"))?;
+    let result = build_quads(&products.surface, atlas, field, &params.quads, progress).map_err(quads_failure)?;
+    progress.check()?;
+    let write_start = std::time::Instant::now();
+    let artifacts = vec![
+        write_artifact(out_dir, "quads.msh", |w| write_quads_msh(&result.mesh, &result.model, w, &params.output))?,
+        write_artifact(out_dir, "quads.vtu", |w| write_quads_vtu(&result.mesh, &result.quality, w))?,
+    ];
+    let write_seconds = write_start.elapsed().as_secs_f64();
+    Ok(StageOutput { report: StageReport::Quads(Box::new(result.report)), artifacts, write_seconds })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn quads_errors_map_to_their_failure_kinds() {
+        let kind = |e: QuadsError| quads_failure(e).kind();
+        let invalid = QuadsError::InvalidOption { name: "crossfield.symmetry", reason: "6".into() };
+        assert_eq!(kind(invalid), FailureKind::InvalidParams);
+        assert_eq!(kind(QuadsError::TooManyQuads { size: 1e-9, estimated: 1 << 40, limit: 10 }), FailureKind::InvalidTargetSize);
+        let check = QuadsError::CheckFailed { check: "inverted", detail: "quad 3".into() };
+        assert_eq!(kind(check), FailureKind::StageFailed);
+        assert!(matches!(quads_failure(QuadsError::Cancelled(crate::progress::Cancelled)), PipelineError::Cancelled));
+    }
 }

@@ -26,6 +26,7 @@
 pub mod check;
 pub mod cleanup;
 pub mod error;
+pub mod fixtures;
 pub mod jacobian;
 pub mod model;
 pub mod options;

@@ -97,6 +97,7 @@ fn option_schemas_list_exactly_the_option_fields() {
         ("LoadOptions", fields(serde_json::to_value(meshatlas::io::LoadOptions::default()).unwrap())),
         ("AtlasOptions", fields(serde_json::to_value(meshatlas::atlas::AtlasOptions::default()).unwrap())),
         ("FramesOptions", fields(serde_json::to_value(meshatlas::frames::FramesOptions::default()).unwrap())),
+        ("QuadsOptions", fields(serde_json::to_value(meshatlas::quads::QuadsOptions::default()).unwrap())),
         ("OutputOptions", fields(serde_json::to_value(meshatlas::io::msh_output::OutputOptions::default()).unwrap())),
         (
             "CrossfieldOptions",

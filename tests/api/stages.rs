@@ -93,6 +93,9 @@ async fn stage_options_are_validated_at_submission() {
         (r#"{"crossfield":{"symmetry":5}}"#, "crossfield.symmetry"),
         (r#"{"atlas":{"wobble":1}}"#, "atlas.wobble"),
         (r#"{"frames":{"tau_shrink":2}}"#, "frames.tau_shrink"),
+        (r#"{"quads":{"order":3}}"#, "quads.order"),
+        (r#"{"quads":{"size":-1}}"#, "quads.size"),
+        (r#"{"quads":{"sise":1}}"#, "quads.sise"),
     ] {
         let q = format!("?params={}", urlenc(params));
         let r = s.submit_raw(&q, "application/octet-stream", b"solid x\nendsolid x\n".to_vec()).await;

@@ -45,6 +45,13 @@ pub enum ElementType {
     Triangle,
     /// 4-node tetrahedron (type 4).
     Tetrahedron,
+    /// 4-node quadrangle (type 3).
+    Quadrangle,
+    /// 3-node second-order line (type 8): end points, then the mid node.
+    Line3,
+    /// 9-node second-order quadrangle (type 10): 4 corners, the nodes of
+    /// edges 01, 12, 23, 30, then the centre.
+    Quadrangle9,
 }
 
 impl ElementType {
@@ -55,6 +62,9 @@ impl ElementType {
             Self::Line => 1,
             Self::Triangle => 2,
             Self::Tetrahedron => 4,
+            Self::Quadrangle => 3,
+            Self::Line3 => 8,
+            Self::Quadrangle9 => 10,
         }
     }
 
@@ -65,6 +75,9 @@ impl ElementType {
             Self::Line => 2,
             Self::Triangle => 3,
             Self::Tetrahedron => 4,
+            Self::Quadrangle => 4,
+            Self::Line3 => 3,
+            Self::Quadrangle9 => 9,
         }
     }
 
@@ -72,8 +85,8 @@ impl ElementType {
     pub fn dim(self) -> u8 {
         match self {
             Self::Point => 0,
-            Self::Line => 1,
-            Self::Triangle => 2,
+            Self::Line | Self::Line3 => 1,
+            Self::Triangle | Self::Quadrangle | Self::Quadrangle9 => 2,
             Self::Tetrahedron => 3,
         }
     }
@@ -85,6 +98,9 @@ impl ElementType {
             Self::Line => "line",
             Self::Triangle => "triangle",
             Self::Tetrahedron => "tetrahedron",
+            Self::Quadrangle => "quadrangle",
+            Self::Line3 => "3-node line",
+            Self::Quadrangle9 => "9-node quadrangle",
         }
     }
 }
