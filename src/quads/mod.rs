@@ -27,15 +27,18 @@ pub mod check;
 pub mod cleanup;
 pub mod error;
 pub mod jacobian;
+pub mod matching;
 pub mod model;
 pub mod options;
 pub mod order2;
 pub mod output;
+pub mod pairing;
 pub mod projection;
 pub mod quality;
 pub mod recombine;
 pub mod report;
 pub mod smooth;
+pub mod subdivision;
 pub mod surface_mesh;
 pub mod triangulation;
 
