@@ -1,24 +1,516 @@
-//! Step 4 of the quads stage (owner: recombination helper). PLACEHOLDER on
-//! the `quads` branch only: replaced before the branch is merged.
+//! Step 4 of the quads stage: the triangles paired into quads (research
+//! quad-meshing §1.1, §1.2, §2.1, §5.1 step 4).
+//!
+//! 1. [`super::pairing`]: the candidate pairs (two triangles of one model
+//!    face across a non-curve edge, strictly convex) costed by shape and
+//!    alignment with the cross, taken greedily cheapest first.
+//! 2. [`super::matching`]: every triangle greedy left free is the root of an
+//!    augmenting-path (blossom) search on a growing window of its face, so
+//!    the pairing becomes a maximum matching of the candidate pairs.
+//! 3. [`super::subdivision`]: the faces where triangles remain (odd count, or
+//!    no perfect matching among the convex pairs), with every face sharing
+//!    an edge with them, are midpoint-subdivided into quads.
+//!
+//! Feature-curve edges are never removed (no pair crosses one). The vertex
+//! set is the triangulation's plus the subdivision's new vertices, appended,
+//! so `singular_vertices` and `seam_vertices` keep their indices.
+
+use std::time::Instant;
 
 use serde::Serialize;
 
 use super::error::QuadsError;
+use super::matching::complete_matching;
+use super::pairing::{DualGraph, NONE, greedy_partners};
+use super::subdivision::{Element, faces_to_subdivide, subdivide};
 use super::surface_mesh::{QuadMesh, SurfaceTriangulation};
 use crate::progress::Progress;
 
 /// What recombination did (for the report).
-#[derive(Debug, Clone, Default, Serialize)]
+#[derive(Debug, Clone, Default, PartialEq, Serialize)]
 pub struct RecombineStats {
+    /// Triangles in.
+    pub n_triangles_in: usize,
+    /// Candidate pairs (convex quads across non-curve edges).
+    pub n_candidate_pairs: usize,
+    /// Pairs made by the greedy pass.
+    pub n_greedy_pairs: usize,
+    /// Triangles the greedy pass left free.
+    pub n_unmatched_after_greedy: usize,
+    /// Pairs of the final matching that greedy had not made (changed or
+    /// added by augmenting paths).
+    pub n_matching_pairs: usize,
+    /// Augmenting paths applied.
+    pub n_augmenting_paths: usize,
+    /// Windows searched for augmenting paths.
+    pub n_windows: usize,
+    /// Triangles no augmenting path could pair.
+    pub n_unmatched_after_matching: usize,
+    /// Model faces midpoint-subdivided (the last resort; should be 0).
+    pub n_subdivided_faces: usize,
+    /// Quads made by subdivision.
+    pub n_subdivision_quads: usize,
+    /// Quads out.
+    pub n_quads: usize,
+    /// Wall seconds of the candidate pairs and the greedy pass.
+    pub greedy_seconds: f64,
+    /// Wall seconds of the completion.
+    pub matching_seconds: f64,
+    /// Wall seconds of the subdivision and the output assembly.
+    pub subdivision_seconds: f64,
     /// Wall seconds of the step.
     pub seconds: f64,
 }
 
-/// All-quad mesh from the triangles of `tri`.
+/// All-quad mesh from the triangles of `tri` (module doc), with what was
+/// done.
 ///
 /// # Errors
+/// [`QuadsError::CheckFailed`] when `tri`'s arrays disagree in length or
+/// name a vertex that does not exist (a bug of the triangulation step),
 /// [`QuadsError::Cancelled`].
 pub fn recombine(tri: SurfaceTriangulation, progress: &Progress) -> Result<(QuadMesh, RecombineStats), QuadsError> {
-    let _ = (tri, progress);
-    Err(QuadsError::CheckFailed { check: "placeholder", detail: String::new() })
+    let start = Instant::now();
+    check_input(&tri)?;
+    let mut stats = RecombineStats { n_triangles_in: tri.triangles.len(), ..RecombineStats::default() };
+
+    let graph = DualGraph::new(&tri);
+    let mut partner = greedy_partners(&graph);
+    let greedy = partner.clone();
+    stats.n_candidate_pairs = graph.pairs.len();
+    stats.n_greedy_pairs = n_pairs(&partner);
+    stats.n_unmatched_after_greedy = partner.iter().filter(|&&p| p == NONE).count();
+    stats.greedy_seconds = start.elapsed().as_secs_f64();
+    progress.set(0.2);
+    progress.check()?;
+
+    let t = Instant::now();
+    let completion = complete_matching(&graph, &mut partner, &progress.sub(0.2, 0.9))?;
+    stats.n_windows = completion.n_windows;
+    stats.n_augmenting_paths = completion.n_augmentations;
+    stats.n_unmatched_after_matching = completion.unmatched.len();
+    stats.n_matching_pairs =
+        (0..partner.len()).filter(|&t| partner[t] != NONE && (t as u32) < partner[t] && greedy[t] != partner[t]).count();
+    stats.matching_seconds = t.elapsed().as_secs_f64();
+    progress.check()?;
+
+    let t = Instant::now();
+    let (elements, face_per_element) = elements(&tri, &graph, &partner);
+    let n_faces = tri.model_face_per_triangle.iter().map(|&f| f as usize + 1).max().unwrap_or(0);
+    let failing: Vec<u32> = completion.unmatched.iter().map(|&t| tri.model_face_per_triangle[t as usize]).collect();
+    let flagged = faces_to_subdivide(n_faces, &failing, &graph.face_links);
+    stats.n_subdivided_faces = flagged.iter().filter(|&&f| f).count();
+    let SurfaceTriangulation { mut vertices, mut curve_edges, singular_vertices, seam_vertices, .. } = tri;
+    let (quads, model_face_per_quad, n_subdivision_quads) =
+        subdivide(&mut vertices, &elements, &face_per_element, &flagged, &mut curve_edges);
+    stats.n_subdivision_quads = n_subdivision_quads;
+    stats.n_quads = quads.len();
+    stats.subdivision_seconds = t.elapsed().as_secs_f64();
+    stats.seconds = start.elapsed().as_secs_f64();
+    progress.set(1.0);
+    let mesh = QuadMesh {
+        vertices,
+        quads,
+        model_face_per_quad,
+        curve_edges,
+        high_order_nodes: None,
+        singular_vertices,
+        seam_vertices,
+    };
+    Ok((mesh, stats))
+}
+
+/// Pairs in `partner`.
+fn n_pairs(partner: &[u32]) -> usize {
+    (0..partner.len()).filter(|&t| partner[t] != NONE && (t as u32) < partner[t]).count()
+}
+
+/// The elements of the matching, in order of their lowest triangle: the
+/// pairs' quads and the free triangles, with their model faces.
+fn elements(tri: &SurfaceTriangulation, graph: &DualGraph, partner: &[u32]) -> (Vec<Element>, Vec<u32>) {
+    let mut elements = Vec::with_capacity(tri.triangles.len() / 2 + 1);
+    let mut faces = Vec::with_capacity(tri.triangles.len() / 2 + 1);
+    for (t, &u) in partner.iter().enumerate() {
+        let t32 = t as u32;
+        let element = if u == NONE {
+            Element::Triangle(tri.triangles[t])
+        } else if t32 < u {
+            match graph.pair_of(t32, u) {
+                Some(p) => Element::Quad(p.quad),
+                None => continue,
+            }
+        } else {
+            continue;
+        };
+        elements.push(element);
+        faces.push(tri.model_face_per_triangle[t]);
+    }
+    (elements, faces)
+}
+
+/// Checks that `tri`'s per-triangle arrays match its triangles and that
+/// every index names a vertex.
+fn check_input(tri: &SurfaceTriangulation) -> Result<(), QuadsError> {
+    let n = tri.triangles.len();
+    let nv = tri.vertices.len();
+    let fail = |detail: String| Err(QuadsError::CheckFailed { check: "recombination input", detail });
+    let lengths = [
+        ("model_face_per_triangle", tri.model_face_per_triangle.len()),
+        ("cross_per_triangle", tri.cross_per_triangle.len()),
+        ("normal_per_triangle", tri.normal_per_triangle.len()),
+    ];
+    for (name, len) in lengths {
+        if len != n {
+            return fail(format!("{name} has {len} entries for {n} triangles"));
+        }
+    }
+    if tri.vertices.on_surface.len() != nv || tri.vertices.entity.len() != nv {
+        return fail(format!("vertex arrays disagree in length ({nv} positions)"));
+    }
+    if let Some(t) = tri.triangles.iter().position(|t| t.iter().any(|&v| v as usize >= nv)) {
+        return fail(format!("triangle {t} {:?} names a vertex beyond {nv}", tri.triangles[t]));
+    }
+    if let Some(&(c, e)) = tri.curve_edges.iter().find(|(_, e)| e.iter().any(|&v| v as usize >= nv)) {
+        return fail(format!("curve {c} edge {e:?} names a vertex beyond {nv}"));
+    }
+    if u32::try_from(n).is_err() {
+        return fail(format!("{n} triangles exceed the u32 indices"));
+    }
+    Ok(())
+}
+
+#[cfg(test)]
+mod tests {
+    use std::collections::HashMap;
+
+    use rand::{Rng, SeedableRng, rngs::StdRng};
+    use spade::{DelaunayTriangulation, Point2, Triangulation};
+
+    use super::*;
+    use crate::geom::Vec3;
+    use crate::mesh::FaceId;
+    use crate::quads::jacobian::scaled_jacobian;
+    use crate::quads::surface_mesh::{ModelEntity, SurfacePoint};
+
+    /// A planar triangulation of `points` (z = 0) with triangles `triangles`
+    /// in model faces `faces`, cross along x, normal +z, and every edge used
+    /// by one triangle or by two faces made a curve edge (curve 0).
+    fn planar(points: &[[f64; 2]], triangles: Vec<[u32; 3]>, faces: Vec<u32>) -> SurfaceTriangulation {
+        let mut tri = SurfaceTriangulation::default();
+        for (i, p) in points.iter().enumerate() {
+            let sp = SurfacePoint { face: FaceId(i as u32), bary: [1.0, 0.0, 0.0] };
+            tri.vertices.push(Vec3::new(p[0], p[1], 0.0), sp, ModelEntity::Face(0));
+        }
+        let mut uses: HashMap<(u32, u32), Vec<(u32, [u32; 2])>> = HashMap::new();
+        for (t, tv) in triangles.iter().enumerate() {
+            for i in 0..3 {
+                let (a, b) = (tv[i], tv[(i + 1) % 3]);
+                uses.entry((a.min(b), a.max(b))).or_default().push((faces[t], [a, b]));
+            }
+        }
+        let mut curve: Vec<[u32; 2]> = uses
+            .values()
+            .filter(|u| u.len() == 1 || u[0].0 != u[1].0)
+            .map(|u| u[0].1)
+            .collect();
+        curve.sort_unstable();
+        for &[a, b] in &curve {
+            for v in [a, b] {
+                tri.vertices.entity[v as usize] = ModelEntity::Curve(0);
+            }
+        }
+        tri.curve_edges = curve.into_iter().map(|e| (0, e)).collect();
+        tri.cross_per_triangle = vec![Vec3::x(); triangles.len()];
+        tri.normal_per_triangle = vec![Vec3::z(); triangles.len()];
+        tri.triangles = triangles;
+        tri.model_face_per_triangle = faces;
+        tri
+    }
+
+    /// The `n × n` grid of unit squares, cell `(i, j)` split along the
+    /// diagonal from `(i, j)` to `(i+1, j+1)` when `diagonal(i, j)`, else the
+    /// other one. Vertex `(i, j)` is `j (n + 1) + i`; triangles of cell
+    /// `(i, j)` are `2 (j n + i)` and the next.
+    fn grid(n: u32, diagonal: impl Fn(u32, u32) -> bool) -> (Vec<[f64; 2]>, Vec<[u32; 3]>) {
+        let v = |i: u32, j: u32| j * (n + 1) + i;
+        let points = (0..=n).flat_map(|j| (0..=n).map(move |i| [f64::from(i), f64::from(j)])).collect();
+        let mut triangles = Vec::new();
+        for j in 0..n {
+            for i in 0..n {
+                let (a, b, c, d) = (v(i, j), v(i + 1, j), v(i + 1, j + 1), v(i, j + 1));
+                if diagonal(i, j) {
+                    triangles.extend([[a, b, c], [a, c, d]]);
+                } else {
+                    triangles.extend([[a, b, d], [b, c, d]]);
+                }
+            }
+        }
+        (points, triangles)
+    }
+
+    /// The Delaunay triangulation of `points` (spade), one model face.
+    fn delaunay(points: &[[f64; 2]]) -> SurfaceTriangulation {
+        let dt: DelaunayTriangulation<Point2<f64>> =
+            DelaunayTriangulation::bulk_load(points.iter().map(|p| Point2::new(p[0], p[1])).collect())
+                .expect("finite points");
+        let positions: Vec<[f64; 2]> = dt.vertices().map(|v| [v.position().x, v.position().y]).collect();
+        let triangles: Vec<[u32; 3]> =
+            dt.inner_faces().map(|f| f.vertices().map(|v| v.fix().index() as u32)).collect();
+        let n = triangles.len();
+        planar(&positions, triangles, vec![0; n])
+    }
+
+    /// Grid points with the interior ones jittered by ±0.2 (seeded).
+    fn jittered_grid(n: u32, seed: u64) -> Vec<[f64; 2]> {
+        let mut rng = StdRng::seed_from_u64(seed);
+        let (points, _) = grid(n, |_, _| true);
+        points
+            .into_iter()
+            .map(|[x, y]| {
+                let inside = x > 0.0 && y > 0.0 && x < f64::from(n) && y < f64::from(n);
+                if inside { [x + rng.random_range(-0.2..0.2), y + rng.random_range(-0.2..0.2)] } else { [x, y] }
+            })
+            .collect()
+    }
+
+    /// Uniform random points in the unit square with its corners, the count
+    /// trimmed until the Delaunay triangulation has an even triangle count.
+    fn random_even(n: usize, seed: u64) -> SurfaceTriangulation {
+        let mut rng = StdRng::seed_from_u64(seed);
+        let mut points = vec![[0.0, 0.0], [1.0, 0.0], [1.0, 1.0], [0.0, 1.0]];
+        points.extend((0..n).map(|_| [rng.random_range(0.0..1.0), rng.random_range(0.0..1.0)]));
+        loop {
+            let tri = delaunay(&points);
+            if tri.triangles.len() % 2 == 0 {
+                return tri;
+            }
+            points.pop();
+        }
+    }
+
+    fn run(tri: &SurfaceTriangulation) -> (QuadMesh, RecombineStats) {
+        recombine(tri.clone(), &Progress::none()).expect("recombination succeeds")
+    }
+
+    /// Asserts every quad strictly convex against +z, every directed edge
+    /// used once, every undirected edge by at most two quads and every
+    /// curve edge (and only those) by exactly one quad unless the curve
+    /// separates two faces.
+    fn assert_valid(mesh: &QuadMesh) {
+        let mut directed: HashMap<(u32, u32), usize> = HashMap::new();
+        for q in &mesh.quads {
+            let p = q.map(|v| mesh.vertices.positions[v as usize]);
+            assert!(scaled_jacobian(&p, &Vec3::z()) > 0.0, "quad {q:?} not strictly convex");
+            for i in 0..4 {
+                *directed.entry((q[i], q[(i + 1) % 4])).or_default() += 1;
+            }
+        }
+        assert!(directed.values().all(|&c| c == 1), "a directed edge is used twice (orientation or overlap)");
+        let curve: std::collections::HashSet<(u32, u32)> =
+            mesh.curve_edges.iter().map(|&(_, [a, b])| (a.min(b), a.max(b))).collect();
+        for &(a, b) in directed.keys() {
+            if !directed.contains_key(&(b, a)) {
+                assert!(curve.contains(&(a.min(b), a.max(b))), "edge ({a}, {b}) is a boundary but no curve");
+            }
+        }
+        for &(a, b) in &curve {
+            assert!(
+                directed.contains_key(&(a, b)) || directed.contains_key(&(b, a)),
+                "curve edge ({a}, {b}) is no quad edge"
+            );
+        }
+        assert_eq!(mesh.model_face_per_quad.len(), mesh.quads.len());
+    }
+
+    fn sorted(mut q: [u32; 4]) -> [u32; 4] {
+        q.sort_unstable();
+        q
+    }
+
+    #[test]
+    fn a_grid_of_split_squares_gives_back_exactly_its_squares() {
+        let n = 8;
+        let (points, triangles) = grid(n, |i, j| (i + j) % 2 == 0);
+        let tri = planar(&points, triangles, vec![0; (2 * n * n) as usize]);
+        let (mesh, stats) = run(&tri);
+        let mut got: Vec<[u32; 4]> = mesh.quads.iter().map(|&q| sorted(q)).collect();
+        got.sort_unstable();
+        let v = |i: u32, j: u32| j * (n + 1) + i;
+        let mut cells: Vec<[u32; 4]> = (0..n)
+            .flat_map(|j| (0..n).map(move |i| sorted([v(i, j), v(i + 1, j), v(i + 1, j + 1), v(i, j + 1)])))
+            .collect();
+        cells.sort_unstable();
+        assert_eq!(got, cells);
+        assert_eq!((stats.n_greedy_pairs, stats.n_unmatched_after_greedy, stats.n_matching_pairs), (64, 0, 0));
+        assert_eq!(stats.n_subdivided_faces, 0);
+        for q in &mesh.quads {
+            let p = q.map(|v| mesh.vertices.positions[v as usize]);
+            assert!((scaled_jacobian(&p, &Vec3::z()) - 1.0).abs() < 1e-12, "square {q:?} not counter-clockwise");
+        }
+        assert_valid(&mesh);
+        assert_eq!(mesh.vertices.len(), points.len());
+    }
+
+    #[test]
+    fn a_jittered_grid_becomes_all_quads_without_subdivision() {
+        for seed in [1, 2, 3] {
+            let tri = delaunay(&jittered_grid(30, seed));
+            let (mesh, stats) = run(&tri);
+            assert_eq!(stats.n_subdivided_faces, 0, "seed {seed}: {stats:?}");
+            assert_eq!(mesh.quads.len(), tri.triangles.len() / 2);
+            assert_eq!(stats.n_unmatched_after_matching, 0);
+            assert_valid(&mesh);
+        }
+    }
+
+    #[test]
+    fn random_points_with_an_even_count_are_completed_to_quads() {
+        for seed in [7, 8] {
+            let tri = random_even(1500, seed);
+            let (mesh, stats) = run(&tri);
+            assert!(stats.n_unmatched_after_greedy > 0, "random points should leave greedy leftovers");
+            if stats.n_subdivided_faces == 0 {
+                assert_eq!(mesh.quads.len(), tri.triangles.len() / 2, "{stats:?}");
+                assert_eq!(stats.n_unmatched_after_matching, 0);
+            } else {
+                assert!(stats.n_unmatched_after_matching > 0);
+                assert!(stats.n_subdivision_quads == mesh.quads.len());
+            }
+            assert_valid(&mesh);
+        }
+    }
+
+    /// Four triangles in a strip: t0 | t1 t2 | t3 with t1 + t2 the unit
+    /// square (cost 0), so greedy pairs it and strands t0 and t3; the only
+    /// perfect matching is t0 + t1, t2 + t3, reached by the augmenting path
+    /// t0 – t1 = t2 – t3.
+    fn strip() -> (Vec<[f64; 2]>, Vec<[u32; 3]>) {
+        // b0 b1 b2 u0 u1 u2
+        let points = vec![[-1.0, 0.5], [0.0, 0.0], [1.0, 0.0], [0.0, 1.0], [1.0, 1.0], [2.0, 0.5]];
+        let triangles = vec![[0, 1, 3], [1, 4, 3], [1, 2, 4], [2, 5, 4]];
+        (points, triangles)
+    }
+
+    #[test]
+    fn an_augmenting_path_pairs_what_greedy_stranded() {
+        let (points, triangles) = strip();
+        let tri = planar(&points, triangles, vec![0; 4]);
+        let (mesh, stats) = run(&tri);
+        assert_eq!((stats.n_greedy_pairs, stats.n_unmatched_after_greedy), (1, 2));
+        assert_eq!((stats.n_matching_pairs, stats.n_augmenting_paths, stats.n_subdivided_faces), (2, 1, 0));
+        let got: Vec<[u32; 4]> = mesh.quads.iter().map(|&q| sorted(q)).collect();
+        assert_eq!(got, vec![[0, 1, 3, 4], [1, 2, 4, 5]]);
+        assert_valid(&mesh);
+    }
+
+    #[test]
+    fn an_odd_face_is_subdivided_into_quads_and_reported() {
+        let (points, mut triangles) = strip();
+        triangles.pop();
+        let tri = planar(&points, triangles, vec![0; 3]);
+        let n_curve = tri.curve_edges.len();
+        let (mesh, stats) = run(&tri);
+        assert_eq!((stats.n_subdivided_faces, stats.n_subdivision_quads, stats.n_quads), (1, 7, 7));
+        assert_eq!(stats.n_unmatched_after_matching, 1);
+        // 5 corners, 6 edge midpoints, 2 centres.
+        assert_eq!(mesh.vertices.len(), 13);
+        assert_eq!(mesh.curve_edges.len(), 2 * n_curve);
+        for &(_, [a, b]) in &mesh.curve_edges {
+            let new = a.max(b);
+            assert!(new >= 5 && mesh.vertices.entity[new as usize] == ModelEntity::Curve(0));
+        }
+        assert_valid(&mesh);
+    }
+
+    #[test]
+    fn subdivision_spreads_to_faces_sharing_an_edge_and_no_further() {
+        // Face 0: cells x < 2 of a 4 × 4 grid; face 1: cells x ≥ 2 less the
+        // upper triangle of cell (3, 3), the last one (15 triangles, odd);
+        // face 2: a detached unit square far away.
+        let (mut points, mut triangles) = grid(4, |_, _| true);
+        let mut faces: Vec<u32> = (0..triangles.len()).map(|t| u32::from((t / 2) % 4 >= 2)).collect();
+        triangles.pop();
+        faces.pop();
+        let base = points.len() as u32;
+        points.extend([[10.0, 0.0], [11.0, 0.0], [11.0, 1.0], [10.0, 1.0]]);
+        triangles.extend([[base, base + 1, base + 2], [base, base + 2, base + 3]]);
+        faces.extend([2, 2]);
+        assert_eq!(faces.iter().filter(|&&f| f == 1).count() % 2, 1);
+        let tri = planar(&points, triangles, faces);
+        let (mesh, stats) = run(&tri);
+        assert_eq!(stats.n_subdivided_faces, 2, "{stats:?}");
+        let squares_in_face_2 = mesh.model_face_per_quad.iter().filter(|&&f| f == 2).count();
+        assert_eq!(squares_in_face_2, 1);
+        assert_valid(&mesh);
+    }
+
+    #[test]
+    fn curve_edges_are_never_crossed() {
+        // The grid's main diagonal is a curve between face 0 (below) and
+        // face 1 (above); every cell is split along that diagonal's direction.
+        let n = 6;
+        let (points, triangles) = grid(n, |_, _| true);
+        let faces: Vec<u32> = (0..triangles.len())
+            .map(|t| {
+                let (cell, upper) = (t as u32 / 2, t % 2 == 1);
+                let (i, j) = (cell % n, cell / n);
+                u32::from(j > i || (j == i && upper))
+            })
+            .collect();
+        let tri = planar(&points, triangles, faces);
+        let v = |i: u32| i * (n + 1) + i;
+        let diagonal: Vec<[u32; 2]> = (0..n).map(|i| [v(i), v(i + 1)]).collect();
+        for e in &diagonal {
+            assert!(tri.curve_edges.iter().any(|(_, c)| c == e));
+        }
+        let (mesh, stats) = run(&tri);
+        assert_valid(&mesh);
+        assert!(mesh.quads.iter().zip(&mesh.model_face_per_quad).all(|(q, &f)| {
+            let below = q.iter().all(|&x| x % (n + 1) >= x / (n + 1));
+            let above = q.iter().all(|&x| x % (n + 1) <= x / (n + 1));
+            if f == 0 { below } else { above }
+        }) || stats.n_subdivided_faces > 0);
+    }
+
+    #[test]
+    fn the_same_input_gives_the_same_mesh() {
+        let tri = random_even(800, 11);
+        let (a, sa) = run(&tri);
+        let (b, sb) = run(&tri);
+        assert_eq!(a.quads, b.quads);
+        assert_eq!(a.vertices.positions, b.vertices.positions);
+        assert_eq!(a.curve_edges, b.curve_edges);
+        let counts = |s: &RecombineStats| {
+            (s.n_greedy_pairs, s.n_matching_pairs, s.n_windows, s.n_subdivided_faces, s.n_quads)
+        };
+        assert_eq!(counts(&sa), counts(&sb));
+    }
+
+    #[test]
+    fn inconsistent_input_is_an_error_not_a_panic() {
+        let (points, triangles) = strip();
+        let mut tri = planar(&points, triangles, vec![0; 4]);
+        tri.cross_per_triangle.pop();
+        assert!(matches!(recombine(tri, &Progress::none()), Err(QuadsError::CheckFailed { .. })));
+        let mut tri = planar(&points, vec![[0, 1, 9]], vec![0]);
+        tri.curve_edges.clear();
+        assert!(matches!(recombine(tri, &Progress::none()), Err(QuadsError::CheckFailed { .. })));
+    }
+
+    /// Speed on ~50k and ~200k triangles (numbers in docs/decisions.md):
+    /// `cargo test --release --lib quads::recombine -- --ignored --nocapture`.
+    #[test]
+    #[ignore]
+    fn measure_speed() {
+        for (name, tri) in [
+            ("jittered grid 160²", delaunay(&jittered_grid(160, 5))),
+            ("jittered grid 320²", delaunay(&jittered_grid(320, 5))),
+            ("random 25k", random_even(25_000, 5)),
+            ("random 100k", random_even(100_000, 5)),
+        ] {
+            let (mesh, stats) = run(&tri);
+            assert_valid(&mesh);
+            println!("{name}: {stats:?}");
+        }
+    }
 }
