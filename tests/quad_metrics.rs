@@ -217,13 +217,17 @@ fn metrics(suite: &str, files: &[(&str, String)]) -> std::collections::HashMap<S
         })
         .collect();
     let script = Path::new(env!("CARGO_MANIFEST_DIR")).join("benches/quad_metrics.py");
-    let out = Command::new("python3")
-        .arg(&script)
-        .args(paths.iter().map(|p| path_str(p)))
-        .output()
-        .unwrap_or_else(|e| panic!("cannot run python3 ({e}); run .ci/run to install python3 with gmsh and meshio"));
+    let out =
+        Command::new("python3").arg(&script).args(paths.iter().map(|p| path_str(p))).output().unwrap_or_else(|e| {
+            panic!("cannot run python3 ({e}); run .ci/run to install python3 with gmsh and meshio")
+        });
     let stdout = String::from_utf8_lossy(&out.stdout);
-    assert!(out.status.success(), "quad_metrics.py failed ({}):\n{}\n{stdout}", out.status, String::from_utf8_lossy(&out.stderr));
+    assert!(
+        out.status.success(),
+        "quad_metrics.py failed ({}):\n{}\n{stdout}",
+        out.status,
+        String::from_utf8_lossy(&out.stderr)
+    );
     let mut by_name = std::collections::HashMap::new();
     for (line, (name, _)) in stdout.lines().filter(|l| l.starts_with('{')).zip(files) {
         let v: Value = serde_json::from_str(line).unwrap();
