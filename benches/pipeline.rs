@@ -9,7 +9,15 @@
 //! ```sh
 //! cargo bench --bench pipeline -- [--gmsh] [--stages atlas,crossfield] [--out bench-out] FILE...
 //! cargo bench --bench pipeline -- --generate sphere:1000000:bench-out/sphere_1m.stl [FILE...]
+//! cargo bench --bench pipeline -- --gmsh --stages quads [--gmsh-timeout 120] FILE...
 //! ```
+//!
+//! With `quads` among the stages, each file also gets a side-by-side table
+//! against Gmsh's quasi-structured quad mesher (`pipeline/quads.rs`): both
+//! quad meshes scored by one script (`benches/quad_metrics.py`), beside the
+//! numbers of meshatlas's own report. Gmsh runs with 1 thread (2 deadlock)
+//! and is killed after `--gmsh-timeout` seconds (default 120), reported as
+//! `hang > N s`.
 //!
 //! `--service` also runs each file through `meshatlas serve` (one server
 //! for the run, its numerical pool on every core) from POST to `succeeded`
@@ -25,10 +33,13 @@
 //! report (`meshatlas run --json`), so a new stage shows up by itself.
 //! Memory is each child's peak RSS (`VmHWM` / `ru_maxrss`).
 
+mod quads;
+
 use std::collections::BTreeMap;
+use std::io::Read;
 use std::path::{Path, PathBuf};
-use std::process::Command;
-use std::time::Instant;
+use std::process::{Child, Command, ExitStatus, Stdio};
+use std::time::{Duration, Instant};
 
 use clap::Parser;
 use serde_json::Value;
@@ -56,6 +67,10 @@ struct Args {
     /// CLI run with the ratio.
     #[arg(long)]
     service: bool,
+    /// Seconds after which the Gmsh reference is killed and reported as a
+    /// hang (its quad mesher never finishes on some inputs).
+    #[arg(long, default_value_t = 120.0)]
+    gmsh_timeout: f64,
     /// Passed by `cargo bench`; ignored.
     #[arg(long, hide = true)]
     bench: bool,
@@ -73,6 +88,10 @@ struct Run {
     artifacts: Vec<(String, u64)>,
     /// The pipeline's own `total_seconds`.
     total_seconds: Option<f64>,
+    /// The quads stage's report (`stages.quads`), meshatlas only.
+    quads_report: Option<Value>,
+    /// The quad mesh size Gmsh was given (the mean input edge length).
+    mesh_size: Option<f64>,
 }
 
 fn run_meshatlas(file: &Path, stages: &str, out: &Path) -> Run {
@@ -109,34 +128,92 @@ fn run_meshatlas(file: &Path, stages: &str, out: &Path) -> Run {
         total_seconds: report["total_seconds"].as_f64(),
         peak_rss_kb: report["peak_rss_kb"].as_u64(),
         n_triangles: report["input"]["n_triangles"].as_u64(),
+        quads_report: report["stages"].get("quads").cloned(),
         wall,
         failure: None,
+        mesh_size: None,
     }
 }
 
-fn run_gmsh(file: &Path, stages: &str) -> Run {
+/// Everything a pipe gives until it closes (empty when there is none).
+fn read_pipe(pipe: Option<impl Read>) -> String {
+    let mut text = String::new();
+    if let Some(mut p) = pipe {
+        let _ = p.read_to_string(&mut text);
+    }
+    text
+}
+
+/// Waits for `child` at most `limit`; kills it when the limit passes
+/// (`None`: killed).
+fn wait_at_most(child: &mut Child, limit: Duration) -> Option<ExitStatus> {
+    let start = Instant::now();
+    loop {
+        match child.try_wait() {
+            Ok(Some(status)) => return Some(status),
+            Ok(None) if start.elapsed() < limit => std::thread::sleep(Duration::from_millis(20)),
+            _ => {
+                let _ = child.kill();
+                let _ = child.wait();
+                return None;
+            }
+        }
+    }
+}
+
+/// Runs `benches/gmsh_reference.py` on `file` (Gmsh's own atlas, and its
+/// quad mesh into `out` for the quads stage), killed after `timeout_s`.
+fn run_gmsh(file: &Path, stages: &str, out: &Path, timeout_s: f64) -> Run {
     let script = concat!(env!("CARGO_MANIFEST_DIR"), "/benches/gmsh_reference.py");
     let gmsh_stages = if stages.is_empty() { "atlas" } else { stages };
     let start = Instant::now();
-    let output = match Command::new("python3").arg(script).arg(file).arg(gmsh_stages).output() {
-        Ok(o) => o,
+    let spawned = Command::new("python3")
+        .arg(script)
+        .arg(file)
+        .arg(gmsh_stages)
+        .arg(out)
+        .stdout(Stdio::piped())
+        .stderr(Stdio::piped())
+        .spawn();
+    let mut child = match spawned {
+        Ok(c) => c,
         Err(e) => return Run { failure: Some(format!("cannot start python3: {e}")), ..Run::default() },
     };
+    let (stdout, stderr) = (child.stdout.take(), child.stderr.take());
+    let stdout = std::thread::spawn(move || read_pipe(stdout));
+    let stderr = std::thread::spawn(move || read_pipe(stderr));
+    let status = wait_at_most(&mut child, Duration::from_secs_f64(timeout_s.max(0.0)));
     let mut run = Run { wall: start.elapsed().as_secs_f64(), ..Run::default() };
-    for line in String::from_utf8_lossy(&output.stdout).lines() {
+    for line in stdout.join().unwrap_or_default().lines() {
         let Ok(v) = serde_json::from_str::<Value>(line) else { continue };
         if let (Some(step), Some(s)) = (v["step"].as_str(), v["seconds"].as_f64()) {
             run.steps.push((step.to_string(), s));
         }
         run.peak_rss_kb = run.peak_rss_kb.or(v["peak_rss_kb"].as_u64());
         run.n_triangles = run.n_triangles.or(v["n_triangles"].as_u64());
+        run.mesh_size = run.mesh_size.or(v["mesh_size"].as_f64());
     }
-    if !output.status.success() {
-        let err = String::from_utf8_lossy(&output.stderr);
-        let last = err.lines().rev().find(|l| !l.trim().is_empty()).unwrap_or("").trim().to_string();
-        run.failure = Some(format!("gmsh {} {last}", output.status));
-    }
+    let err = stderr.join().unwrap_or_default();
+    run.failure = match status {
+        None => Some(format!("hang > {timeout_s} s")),
+        Some(s) if !s.success() => {
+            let last = err.lines().rev().find(|l| !l.trim().is_empty()).unwrap_or("").trim().to_string();
+            Some(format!("gmsh {s} {last}"))
+        }
+        Some(_) => None,
+    };
     run
+}
+
+/// The side of one tool in the quads table: its MSH file when it exists.
+fn quads_side<'a>(run: &'a Run, msh: PathBuf) -> quads::Side<'a> {
+    quads::Side {
+        msh: msh.is_file().then_some(msh),
+        wall: run.wall,
+        step: run.steps.iter().find(|(s, _)| s == "quads").map(|(_, v)| *v),
+        failure: run.failure.as_deref(),
+        report: run.quads_report.as_ref(),
+    }
 }
 
 /// Writes the mesh described by `spec` (`KIND:N:PATH`) and returns its path.
@@ -327,7 +404,7 @@ fn main() {
         }
     }
     if args.files.is_empty() {
-        eprintln!("usage: cargo bench --bench pipeline -- [--gmsh] [--stages LIST] FILE...");
+        eprintln!("usage: cargo bench --bench pipeline -- [--gmsh] [--gmsh-timeout SECS] [--stages LIST] FILE...");
         std::process::exit(2);
     }
     let server = if args.service {
@@ -345,8 +422,13 @@ fn main() {
     for file in &args.files {
         let name = file.file_name().map(|n| n.to_string_lossy().into_owned()).unwrap_or_default();
         let out = args.out.join(file.file_stem().unwrap_or_default());
+        let with_quads = args.stages.split(',').any(|s| s.trim() == "quads");
+        // a mesh left by an earlier run must not stand in for a failed one
+        for stale in [quads::QUADS_MSH, quads::GMSH_QUADS_MSH] {
+            let _ = std::fs::remove_file(out.join(stale));
+        }
         let ours = run_meshatlas(file, &args.stages, &out);
-        let gmsh = if args.gmsh { Some(run_gmsh(file, &args.stages)) } else { None };
+        let gmsh = args.gmsh.then(|| run_gmsh(file, &args.stages, &out, args.gmsh_timeout));
         let theirs: BTreeMap<String, f64> =
             gmsh.as_ref().map(|g| g.steps.iter().cloned().collect()).unwrap_or_default();
         let tris = ours.n_triangles.or(gmsh.as_ref().and_then(|g| g.n_triangles));
@@ -391,6 +473,11 @@ fn main() {
         }
         if let Some(f) = gmsh.as_ref().and_then(|g| g.failure.as_ref()) {
             println!("{name:<28} gmsh FAILED: {f}");
+        }
+        if with_quads {
+            let theirs = gmsh.as_ref().map(|g| quads_side(g, out.join(quads::GMSH_QUADS_MSH)));
+            let size = gmsh.as_ref().and_then(|g| g.mesh_size);
+            quads::print_quads_table(&name, size, &quads_side(&ours, out.join(quads::QUADS_MSH)), theirs.as_ref());
         }
         if let Some(server) = &server {
             print_service_rows(&name, &tris, &ours, &run_service(server, file, &args.stages));
