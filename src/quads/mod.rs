@@ -25,12 +25,16 @@
 
 pub mod check;
 pub mod cleanup;
+pub mod curves;
 pub mod error;
+pub mod insertion;
 pub mod jacobian;
 pub mod model;
 pub mod options;
 pub mod order2;
 pub mod output;
+pub mod parity;
+pub mod patch_chart;
 pub mod projection;
 pub mod quality;
 pub mod recombine;
