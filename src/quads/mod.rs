@@ -25,8 +25,10 @@
 
 pub mod check;
 pub mod cleanup;
+pub mod curves;
 pub mod error;
 pub mod fixtures;
+pub mod insertion;
 pub mod jacobian;
 pub mod matching;
 pub mod model;
@@ -34,6 +36,8 @@ pub mod options;
 pub mod order2;
 pub mod output;
 pub mod pairing;
+pub mod parity;
+pub mod patch_chart;
 pub mod projection;
 pub mod quality;
 pub mod recombine;
