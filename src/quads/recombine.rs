@@ -412,12 +412,12 @@ mod tests {
         let (mesh, stats) = run(&tri);
         assert_eq!((stats.n_subdivided_faces, stats.n_subdivision_quads, stats.n_quads), (1, 7, 7));
         assert_eq!(stats.n_unmatched_after_matching, 1);
-        // 5 corners, 6 edge midpoints, 2 centres.
-        assert_eq!(mesh.vertices.len(), 13);
+        // 6 vertices (u2 now unused), 6 edge midpoints, 2 centres.
+        assert_eq!(mesh.vertices.len(), 14);
         assert_eq!(mesh.curve_edges.len(), 2 * n_curve);
         for &(_, [a, b]) in &mesh.curve_edges {
             let new = a.max(b);
-            assert!(new >= 5 && mesh.vertices.entity[new as usize] == ModelEntity::Curve(0));
+            assert!(new >= 6 && mesh.vertices.entity[new as usize] == ModelEntity::Curve(0));
         }
         assert_valid(&mesh);
     }
@@ -461,7 +461,7 @@ mod tests {
         let v = |i: u32| i * (n + 1) + i;
         let diagonal: Vec<[u32; 2]> = (0..n).map(|i| [v(i), v(i + 1)]).collect();
         for e in &diagonal {
-            assert!(tri.curve_edges.iter().any(|(_, c)| c == e));
+            assert!(tri.curve_edges.iter().any(|(_, [a, b])| [*a.min(b), *a.max(b)] == *e));
         }
         let (mesh, stats) = run(&tri);
         assert_valid(&mesh);
@@ -492,8 +492,8 @@ mod tests {
         let mut tri = planar(&points, triangles, vec![0; 4]);
         tri.cross_per_triangle.pop();
         assert!(matches!(recombine(tri, &Progress::none()), Err(QuadsError::CheckFailed { .. })));
-        let mut tri = planar(&points, vec![[0, 1, 9]], vec![0]);
-        tri.curve_edges.clear();
+        let mut tri = planar(&points, vec![[0, 1, 3]], vec![0]);
+        tri.triangles[0] = [0, 1, 9];
         assert!(matches!(recombine(tri, &Progress::none()), Err(QuadsError::CheckFailed { .. })));
     }
 
