@@ -87,7 +87,10 @@ fn check_indices(mesh: &QuadMesh, quality: &QuadQuality, model: &QuadModel) -> R
             return Err(failed("triangles", format!("quad {k} {q:?} repeats a corner (a triangle)")));
         }
         if mesh.model_face_per_quad[k] as usize >= model.n_faces {
-            return Err(failed("indices", format!("quad {k} is on model face {} ≥ {}", mesh.model_face_per_quad[k], model.n_faces)));
+            return Err(failed(
+                "indices",
+                format!("quad {k} is on model face {} ≥ {}", mesh.model_face_per_quad[k], model.n_faces),
+            ));
         }
     }
     for (c, [a, b]) in &mesh.curve_edges {
@@ -176,7 +179,10 @@ fn check_conformity(mesh: &QuadMesh, topo: &Topology, model: &QuadModel) -> Resu
             }
             more => {
                 let quads: Vec<u32> = more.iter().map(|s| s.1).collect();
-                return Err(failed("conformity", format!("edge ({a}, {b}) is shared by {} quads {quads:?}", quads.len())));
+                return Err(failed(
+                    "conformity",
+                    format!("edge ({a}, {b}) is shared by {} quads {quads:?}", quads.len()),
+                ));
             }
         }
     }
@@ -381,7 +387,10 @@ mod tests {
             fixtures::square_structured(5),
             fixtures::cube(3),
             fixtures::cylinder(1.0, 2.0, 16, 4),
-            fixtures::union(&[fixtures::cube(2), fixtures::placed(&fixtures::cube(2), Vec3::repeat(1.0), Vec3::repeat(5.0))]),
+            fixtures::union(&[
+                fixtures::cube(2),
+                fixtures::placed(&fixtures::cube(2), Vec3::repeat(1.0), Vec3::repeat(5.0)),
+            ]),
         ] {
             let c = case(surface);
             assert_eq!(run_checks(&c).map_err(|e| e.to_string()), Ok(()));
@@ -503,7 +512,11 @@ mod tests {
                 for i in 0..4 {
                     let v = c.mesh.quads[k][i];
                     if (c.mesh.vertices.positions[v as usize].x - 0.5).abs() < 1e-12 {
-                        let (p, s, e) = (c.mesh.vertices.positions[v as usize], c.mesh.vertices.on_surface[v as usize], c.mesh.vertices.entity[v as usize]);
+                        let (p, s, e) = (
+                            c.mesh.vertices.positions[v as usize],
+                            c.mesh.vertices.on_surface[v as usize],
+                            c.mesh.vertices.entity[v as usize],
+                        );
                         c.mesh.quads[k][i] = *copy.entry(v).or_insert_with(|| c.mesh.vertices.push(p, s, e));
                     }
                 }

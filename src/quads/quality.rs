@@ -206,8 +206,7 @@ impl QuadQuality {
     /// Mean length of the mesh's edges (straight, corner to corner) with
     /// positions `positions`; `NaN` without edges.
     pub fn mean_edge_length(&self, positions: &[Vec3]) -> f64 {
-        let total: f64 =
-            self.edges.iter().map(|&[a, b]| (positions[a as usize] - positions[b as usize]).norm()).sum();
+        let total: f64 = self.edges.iter().map(|&[a, b]| (positions[a as usize] - positions[b as usize]).norm()).sum();
         total / self.edges.len() as f64
     }
 }

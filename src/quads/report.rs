@@ -243,7 +243,10 @@ mod tests {
         assert_eq!((r.n_quads, r.n_triangles, r.n_vertices, r.n_nodes), (96, 0, 98, 98));
         assert_eq!(r.valence_histogram, BTreeMap::from([(3, 8), (4, 90)]));
         assert_eq!((r.n_irregular_vertices, r.n_irregular_interior, r.n_irregular_boundary), (8, 8, 0));
-        assert_eq!((r.n_singularities, r.singularity_index_sum, r.n_boundary_corners, r.irregular_excess), (8, 8, 0, 0));
+        assert_eq!(
+            (r.n_singularities, r.singularity_index_sum, r.n_boundary_corners, r.irregular_excess),
+            (8, 8, 0, 0)
+        );
         assert_eq!((r.scaled_jacobian_min, r.scaled_jacobian_p5, r.n_inverted, r.n_below_0_3), (1.0, 1.0, 0, 0));
         assert!((r.edge_length_ratio - 1.0).abs() < 1e-12, "edges of 2/4 against a target of 0.5");
         assert_eq!(r.fraction_at_least_0_5, 1.0);
