@@ -108,7 +108,7 @@ fn centroid(mesh: &QuadMesh, q: &[u32; 4]) -> Vec3 {
 
 /// No quad with a scaled Jacobian ≤ 0 (or not a number).
 fn check_inverted(mesh: &QuadMesh, quality: &QuadQuality) -> Result<(), QuadsError> {
-    match quality.scaled_jacobian.iter().position(|&j| !(j > 0.0)) {
+    match quality.scaled_jacobian.iter().position(|&j| j.is_nan() || j <= 0.0) {
         None => Ok(()),
         Some(k) => {
             let c = centroid(mesh, &mesh.quads[k]);
@@ -222,8 +222,8 @@ fn check_coverage(mesh: &QuadMesh, surface: &TriMesh, model: &QuadModel) -> Resu
         allowance[m] += a * (1.0 - delta.cos());
         count[m] += 1;
     }
-    for m in 0..nf {
-        if count[m] == 0 {
+    for (m, &n) in count.iter().enumerate() {
+        if n == 0 {
             return Err(failed("coverage", format!("model face {m} (area {:.6e}) has no quad", input_area[m])));
         }
         let tolerance = AREA_TOLERANCE * input_area[m] + allowance[m];
@@ -232,7 +232,7 @@ fn check_coverage(mesh: &QuadMesh, surface: &TriMesh, model: &QuadModel) -> Resu
                 "coverage",
                 format!(
                     "model face {m}: its {} quads cover area {:.6e}, the input face has {:.6e} (tolerance {:.3e})",
-                    count[m], area[m], input_area[m], tolerance
+                    n, area[m], input_area[m], tolerance
                 ),
             ));
         }
