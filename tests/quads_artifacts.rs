@@ -77,7 +77,13 @@ fn quads_of(surface: &TriMesh) -> (QuadMesh, QuadModel) {
 }
 
 /// Writes `quads.msh` (with `opts`) and `quads.vtu` into `dir`.
-fn write(dir: &Path, mesh: &QuadMesh, model: &QuadModel, surface: &TriMesh, opts: &OutputOptions) -> (PathBuf, PathBuf) {
+fn write(
+    dir: &Path,
+    mesh: &QuadMesh,
+    model: &QuadModel,
+    surface: &TriMesh,
+    opts: &OutputOptions,
+) -> (PathBuf, PathBuf) {
     let (msh, vtu) = (dir.join("quads.msh"), dir.join("quads.vtu"));
     write_quads_msh(mesh, model, BufWriter::new(File::create(&msh).unwrap()), opts).unwrap();
     write_quads_vtu(mesh, &quad_quality(mesh, surface), BufWriter::new(File::create(&vtu).unwrap())).unwrap();
@@ -162,7 +168,9 @@ fn meshio_reads_both_files_and_vtk_finds_quads_with_their_arrays() {
     assert_eq!(valence.iter().filter(|v| v.as_f64() == Some(4.0)).count(), 18, "{r}");
     let irregular: f64 = r["point_data"]["irregular"].as_array().unwrap().iter().filter_map(|v| v.as_f64()).sum();
     assert_eq!(irregular, 8.0, "{r}");
-    assert!(r["cell_data"]["scaled_jacobian"].as_array().unwrap().iter().all(|j| (j.as_f64().unwrap() - 1.0).abs() < 1e-12));
+    assert!(
+        r["cell_data"]["scaled_jacobian"].as_array().unwrap().iter().all(|j| (j.as_f64().unwrap() - 1.0).abs() < 1e-12)
+    );
     let faces: Vec<f64> = r["cell_data"]["model_face"].as_array().unwrap().iter().filter_map(|v| v.as_f64()).collect();
     for f in 0..6 {
         assert_eq!(faces.iter().filter(|&&g| g == f as f64).count(), 4, "face {f}: {r}");

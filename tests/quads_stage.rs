@@ -91,7 +91,8 @@ fn open_artifacts(out: &Path, n_quads: u64) -> Value {
 /// The common assertions on a successful run.
 fn quads_report(report: &Value) -> &Value {
     assert_eq!(report["stages_added"], json!(["atlas", "crossfield"]), "{report:#}");
-    let names: Vec<&str> = report["artifacts"].as_array().unwrap().iter().map(|a| a["name"].as_str().unwrap()).collect();
+    let names: Vec<&str> =
+        report["artifacts"].as_array().unwrap().iter().map(|a| a["name"].as_str().unwrap()).collect();
     assert!(names.contains(&"quads.msh") && names.contains(&"quads.vtu"), "{names:?}");
     assert!(report["timings"].as_array().unwrap().iter().any(|t| t["step"] == "quads"), "{report:#}");
     let q = &report["stages"]["quads"];
@@ -102,7 +103,8 @@ fn quads_report(report: &Value) -> &Value {
 
 #[test]
 fn a_unit_square_is_a_regular_grid() {
-    let (ok, report, out, stderr) = run("square", &fixtures::square(16), r#"{"stages": ["quads"], "quads": {"size": 0.1}}"#);
+    let (ok, report, out, stderr) =
+        run("square", &fixtures::square(16), r#"{"stages": ["quads"], "quads": {"size": 0.1}}"#);
     assert!(ok, "{stderr}");
     let q = quads_report(&report);
     assert_eq!(q["n_irregular_vertices"], json!(0), "{q:#}");

@@ -112,9 +112,7 @@ pub fn status_and_title(kind: FailureKind) -> (StatusCode, &'static str) {
         K::NoValidMap => (StatusCode::UNPROCESSABLE_ENTITY, "A patch has no valid one-to-one parameterization"),
         K::NonOrientableSurface => (StatusCode::UNPROCESSABLE_ENTITY, "The surface cannot be oriented consistently"),
         K::OpenSurface => (StatusCode::UNPROCESSABLE_ENTITY, "The surface is not closed, so it encloses no volume"),
-        K::InvalidTargetSize => {
-            (StatusCode::UNPROCESSABLE_ENTITY, "The target size gives no or too many elements")
-        }
+        K::InvalidTargetSize => (StatusCode::UNPROCESSABLE_ENTITY, "The target size gives no or too many elements"),
         K::TimeLimitExceeded => (StatusCode::UNPROCESSABLE_ENTITY, "Job time limit exceeded"),
         // Job failures caused by the server's storage (full disk, read-only).
         K::StorageFull => (StatusCode::INSUFFICIENT_STORAGE, "The server's storage was full"),

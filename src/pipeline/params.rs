@@ -294,7 +294,10 @@ mod tests {
         assert_eq!(p.stages, vec![StageName::Frames, StageName::Atlas, StageName::Crossfield]);
         let e = parse_params(br#"{"stages": ["atlas", "bogus"]}"#).unwrap_err();
         assert_eq!(e.field.as_deref(), Some("stages[1]"), "{e:?}");
-        assert!(e.message.contains("unknown stage `bogus` (available stages: atlas, crossfield, frames, quads)"), "{e:?}");
+        assert!(
+            e.message.contains("unknown stage `bogus` (available stages: atlas, crossfield, frames, quads)"),
+            "{e:?}"
+        );
         for s in StageName::ALL {
             assert_eq!(StageName::parse(s.as_str()), Ok(*s));
         }
@@ -303,7 +306,13 @@ mod tests {
     #[test]
     fn quads_add_the_atlas_and_the_crossfield_when_not_requested() {
         let p = parse_params(br#"{"stages": ["quads"]}"#).unwrap();
-        assert_eq!(p.stages_to_run(), (vec![StageName::Atlas, StageName::Crossfield, StageName::Quads], vec![StageName::Atlas, StageName::Crossfield]));
+        assert_eq!(
+            p.stages_to_run(),
+            (
+                vec![StageName::Atlas, StageName::Crossfield, StageName::Quads],
+                vec![StageName::Atlas, StageName::Crossfield]
+            )
+        );
         let p = parse_params(br#"{"stages": ["quads", "crossfield", "frames"]}"#).unwrap();
         let all = vec![StageName::Atlas, StageName::Crossfield, StageName::Frames, StageName::Quads];
         assert_eq!(p.stages_to_run(), (all, vec![StageName::Atlas]));

@@ -313,14 +313,27 @@ mod tests {
     #[test]
     fn quads_get_a_summary_line_and_added_stages_are_named() {
         let mut stages = StageReports::default();
-        let q = QuadsReport { n_quads: 96, order: 1, n_vertices: 98, n_irregular_vertices: 8, n_singularities: 8, ..Default::default() };
+        let q = QuadsReport {
+            n_quads: 96,
+            order: 1,
+            n_vertices: 98,
+            n_irregular_vertices: 8,
+            n_singularities: 8,
+            ..Default::default()
+        };
         stages.insert(StageReport::Quads(Box::new(q)));
         let mut r = report(RepairReport::default(), stages);
         r.stages_added = vec![StageName::Atlas, StageName::Crossfield];
         let lines = r.summary_lines();
         let quads = lines.iter().find(|l| l.starts_with("quads ")).unwrap();
-        assert!(quads.contains("96 quads (order 1), 0 triangles, 98 vertices, 8 irregular (8 singularities, excess 0)"), "{quads}");
-        assert!(lines.iter().any(|l| l == "added      atlas, crossfield (needed by the requested stages)"), "{lines:?}");
+        assert!(
+            quads.contains("96 quads (order 1), 0 triangles, 98 vertices, 8 irregular (8 singularities, excess 0)"),
+            "{quads}"
+        );
+        assert!(
+            lines.iter().any(|l| l == "added      atlas, crossfield (needed by the requested stages)"),
+            "{lines:?}"
+        );
         let v = serde_json::to_value(&r).unwrap();
         assert_eq!(v["stages_added"], serde_json::json!(["atlas", "crossfield"]));
         assert_eq!(v["stages"]["quads"]["n_quads"], 96);

@@ -193,7 +193,10 @@ mod tests {
         let kind = |e: QuadsError| quads_failure(e).kind();
         let invalid = QuadsError::InvalidOption { name: "crossfield.symmetry", reason: "6".into() };
         assert_eq!(kind(invalid), FailureKind::InvalidParams);
-        assert_eq!(kind(QuadsError::TooManyQuads { size: 1e-9, estimated: 1 << 40, limit: 10 }), FailureKind::InvalidTargetSize);
+        assert_eq!(
+            kind(QuadsError::TooManyQuads { size: 1e-9, estimated: 1 << 40, limit: 10 }),
+            FailureKind::InvalidTargetSize
+        );
         let check = QuadsError::CheckFailed { check: "inverted", detail: "quad 3".into() };
         assert_eq!(kind(check), FailureKind::StageFailed);
         assert!(matches!(quads_failure(QuadsError::Cancelled(crate::progress::Cancelled)), PipelineError::Cancelled));

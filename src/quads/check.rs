@@ -87,7 +87,10 @@ fn check_indices(mesh: &QuadMesh, quality: &QuadQuality, model: &QuadModel) -> R
             return Err(failed("triangles", format!("quad {k} {q:?} repeats a corner (a triangle)")));
         }
         if mesh.model_face_per_quad[k] as usize >= model.n_faces {
-            return Err(failed("indices", format!("quad {k} is on model face {} ≥ {}", mesh.model_face_per_quad[k], model.n_faces)));
+            return Err(failed(
+                "indices",
+                format!("quad {k} is on model face {} ≥ {}", mesh.model_face_per_quad[k], model.n_faces),
+            ));
         }
     }
     for (c, [a, b]) in &mesh.curve_edges {
@@ -105,7 +108,7 @@ fn centroid(mesh: &QuadMesh, q: &[u32; 4]) -> Vec3 {
 
 /// No quad with a scaled Jacobian ≤ 0 (or not a number).
 fn check_inverted(mesh: &QuadMesh, quality: &QuadQuality) -> Result<(), QuadsError> {
-    match quality.scaled_jacobian.iter().position(|&j| !(j > 0.0)) {
+    match quality.scaled_jacobian.iter().position(|&j| j.is_nan() || j <= 0.0) {
         None => Ok(()),
         Some(k) => {
             let c = centroid(mesh, &mesh.quads[k]);
@@ -176,7 +179,10 @@ fn check_conformity(mesh: &QuadMesh, topo: &Topology, model: &QuadModel) -> Resu
             }
             more => {
                 let quads: Vec<u32> = more.iter().map(|s| s.1).collect();
-                return Err(failed("conformity", format!("edge ({a}, {b}) is shared by {} quads {quads:?}", quads.len())));
+                return Err(failed(
+                    "conformity",
+                    format!("edge ({a}, {b}) is shared by {} quads {quads:?}", quads.len()),
+                ));
             }
         }
     }
@@ -216,8 +222,8 @@ fn check_coverage(mesh: &QuadMesh, surface: &TriMesh, model: &QuadModel) -> Resu
         allowance[m] += a * (1.0 - delta.cos());
         count[m] += 1;
     }
-    for m in 0..nf {
-        if count[m] == 0 {
+    for (m, &n) in count.iter().enumerate() {
+        if n == 0 {
             return Err(failed("coverage", format!("model face {m} (area {:.6e}) has no quad", input_area[m])));
         }
         let tolerance = AREA_TOLERANCE * input_area[m] + allowance[m];
@@ -226,7 +232,7 @@ fn check_coverage(mesh: &QuadMesh, surface: &TriMesh, model: &QuadModel) -> Resu
                 "coverage",
                 format!(
                     "model face {m}: its {} quads cover area {:.6e}, the input face has {:.6e} (tolerance {:.3e})",
-                    count[m], area[m], input_area[m], tolerance
+                    n, area[m], input_area[m], tolerance
                 ),
             ));
         }
@@ -381,7 +387,10 @@ mod tests {
             fixtures::square_structured(5),
             fixtures::cube(3),
             fixtures::cylinder(1.0, 2.0, 16, 4),
-            fixtures::union(&[fixtures::cube(2), fixtures::placed(&fixtures::cube(2), Vec3::repeat(1.0), Vec3::repeat(5.0))]),
+            fixtures::union(&[
+                fixtures::cube(2),
+                fixtures::placed(&fixtures::cube(2), Vec3::repeat(1.0), Vec3::repeat(5.0)),
+            ]),
         ] {
             let c = case(surface);
             assert_eq!(run_checks(&c).map_err(|e| e.to_string()), Ok(()));
@@ -503,7 +512,11 @@ mod tests {
                 for i in 0..4 {
                     let v = c.mesh.quads[k][i];
                     if (c.mesh.vertices.positions[v as usize].x - 0.5).abs() < 1e-12 {
-                        let (p, s, e) = (c.mesh.vertices.positions[v as usize], c.mesh.vertices.on_surface[v as usize], c.mesh.vertices.entity[v as usize]);
+                        let (p, s, e) = (
+                            c.mesh.vertices.positions[v as usize],
+                            c.mesh.vertices.on_surface[v as usize],
+                            c.mesh.vertices.entity[v as usize],
+                        );
                         c.mesh.quads[k][i] = *copy.entry(v).or_insert_with(|| c.mesh.vertices.push(p, s, e));
                     }
                 }

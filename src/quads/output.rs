@@ -73,7 +73,12 @@ fn entities(
         .iter()
         .enumerate()
         .map(|(c, curve)| {
-            let ends = curve.vertices.first().copied().and_then(point_tag).zip(curve.vertices.last().copied().and_then(point_tag));
+            let ends = curve
+                .vertices
+                .first()
+                .copied()
+                .and_then(point_tag)
+                .zip(curve.vertices.last().copied().and_then(point_tag));
             CurveEntity {
                 tag: c as EntityTag + 1,
                 bounding_points: ends.map_or_else(Vec::new, |(a, b)| vec![a, -b]),
@@ -90,7 +95,11 @@ fn entities(
     let surfaces = bounding
         .into_iter()
         .enumerate()
-        .map(|(f, bounding_curves)| SurfaceEntity { tag: f as EntityTag + 1, bounding_curves, physical_tags: Vec::new() })
+        .map(|(f, bounding_curves)| SurfaceEntity {
+            tag: f as EntityTag + 1,
+            bounding_curves,
+            physical_tags: Vec::new(),
+        })
         .collect();
     Ok((points, curves, surfaces))
 }
@@ -137,8 +146,11 @@ fn mid_nodes(mesh: &QuadMesh, high: &[[u32; 5]]) -> HashMap<[u32; 2], u32> {
 /// [`WriteError::Invalid`] when an order-2 curve edge is no quad edge.
 fn element_blocks(mesh: &QuadMesh) -> Result<Vec<ElementBlock>, WriteError> {
     let order2 = mesh.high_order_nodes.as_deref();
-    let (quad_type, line_type) =
-        if order2.is_some() { (ElementType::Quadrangle9, ElementType::Line3) } else { (ElementType::Quadrangle, ElementType::Line) };
+    let (quad_type, line_type) = if order2.is_some() {
+        (ElementType::Quadrangle9, ElementType::Line3)
+    } else {
+        (ElementType::Quadrangle, ElementType::Line)
+    };
     let mut blocks = Vec::new();
     let mut quads_by_face: BTreeMap<u32, Vec<usize>> = BTreeMap::new();
     for (k, &f) in mesh.model_face_per_quad.iter().enumerate() {
@@ -172,7 +184,13 @@ fn element_blocks(mesh: &QuadMesh) -> Result<Vec<ElementBlock>, WriteError> {
         }
         let tags = (next_tag..next_tag + edges.len() as u64).collect();
         next_tag += edges.len() as u64;
-        blocks.push(ElementBlock { entity_dim: 1, entity_tag: c as EntityTag + 1, element_type: line_type, tags, nodes });
+        blocks.push(ElementBlock {
+            entity_dim: 1,
+            entity_tag: c as EntityTag + 1,
+            element_type: line_type,
+            tags,
+            nodes,
+        });
     }
     let mut corner_vertex: BTreeMap<u32, usize> = BTreeMap::new();
     for (v, e) in mesh.vertices.entity.iter().enumerate() {
@@ -290,9 +308,15 @@ mod tests {
         let (mesh, model) = grid(&fixtures::cube(2));
         let msh = quads_msh_model(&mesh, &model).unwrap();
         assert_eq!((msh.points.len(), msh.curves.len(), msh.surfaces.len()), (8, 12, 6));
-        assert!(msh.curves.iter().all(|c| c.bounding_points.len() == 2 && c.bounding_points[0] > 0 && c.bounding_points[1] < 0));
+        assert!(
+            msh.curves
+                .iter()
+                .all(|c| c.bounding_points.len() == 2 && c.bounding_points[0] > 0 && c.bounding_points[1] < 0)
+        );
         assert!(msh.surfaces.iter().all(|s| s.bounding_curves.len() == 4));
-        let count = |t: ElementType| msh.element_blocks.iter().filter(|b| b.element_type == t).map(|b| b.tags.len()).sum::<usize>();
+        let count = |t: ElementType| {
+            msh.element_blocks.iter().filter(|b| b.element_type == t).map(|b| b.tags.len()).sum::<usize>()
+        };
         assert_eq!((count(ElementType::Quadrangle), count(ElementType::Line), count(ElementType::Point)), (24, 24, 8));
         // Nodes: 8 on points, 12 on curves (one per edge midpoint), 6 on surfaces.
         let on = |d: u8| msh.node_blocks.iter().filter(|b| b.entity_dim == d).map(|b| b.tags.len()).sum::<usize>();
@@ -311,9 +335,13 @@ mod tests {
             write_quads_msh(&mesh, &model, &mut bytes, &opts).unwrap();
             let raw = read_back(&bytes);
             assert_eq!(raw.positions.len(), 16, "{opts:?}");
-            for (a, b) in raw.positions.iter().zip(&mesh.vertices.positions) {
-                assert_eq!(a, b, "{opts:?}");
-            }
+            // Nodes come in entity blocks: the same points in another order.
+            let sorted = |p: &[crate::geom::Vec3]| {
+                let mut v: Vec<[f64; 3]> = p.iter().map(|x| [x.x, x.y, x.z]).collect();
+                v.sort_by(|a, b| a.partial_cmp(b).unwrap());
+                v
+            };
+            assert_eq!(sorted(&raw.positions), sorted(&mesh.vertices.positions), "{opts:?}");
             // The reader keeps triangles and tetrahedra only; it counts what it skips.
             assert!(raw.triangles.is_empty());
             assert_eq!(raw.skipped.get("Quadrilateral 4"), Some(&9), "{opts:?} {:?}", raw.skipped);

@@ -195,19 +195,18 @@ impl QuadQuality {
 
     /// Quads whose scaled Jacobian is ≤ 0 (inverted or degenerate) or not a number.
     pub fn n_inverted(&self) -> usize {
-        self.scaled_jacobian.iter().filter(|&&j| !(j > 0.0)).count()
+        self.scaled_jacobian.iter().filter(|&&j| j.is_nan() || j <= 0.0).count()
     }
 
     /// Quads whose scaled Jacobian is below `threshold`.
     pub fn n_below(&self, threshold: f64) -> usize {
-        self.scaled_jacobian.iter().filter(|&&j| !(j >= threshold)).count()
+        self.scaled_jacobian.iter().filter(|&&j| j.is_nan() || j < threshold).count()
     }
 
     /// Mean length of the mesh's edges (straight, corner to corner) with
     /// positions `positions`; `NaN` without edges.
     pub fn mean_edge_length(&self, positions: &[Vec3]) -> f64 {
-        let total: f64 =
-            self.edges.iter().map(|&[a, b]| (positions[a as usize] - positions[b as usize]).norm()).sum();
+        let total: f64 = self.edges.iter().map(|&[a, b]| (positions[a as usize] - positions[b as usize]).norm()).sum();
         total / self.edges.len() as f64
     }
 }
