@@ -369,11 +369,11 @@ fn ideal_quad_counts(mesh: &QuadMesh, quads_of: &[Vec<u32>]) -> Vec<i64> {
 mod tests {
     use super::*;
     use crate::geom::Vec3;
-    use crate::mesh::fixtures;
-    use crate::quads::smooth::tests::{Input, classify, finish, grid_mesh};
-    use crate::quads::smooth::project_all;
-    use crate::quads::surface_mesh::SurfacePoint;
     use crate::mesh::FaceId;
+    use crate::mesh::fixtures;
+    use crate::quads::smooth::project_all;
+    use crate::quads::smooth::tests::{Input, classify, finish, grid_mesh};
+    use crate::quads::surface_mesh::SurfacePoint;
     use std::collections::HashMap;
 
     /// Every edge in one quad (on a curve) or two (inside), and no quad
@@ -426,7 +426,11 @@ mod tests {
         let (c_tr, c_tl, c_bl, c_br) = (id(i + 1, j + 1), id(i - 1, j + 1), id(i - 1, j - 1), id(i + 1, j - 1));
         let block: Vec<usize> = (0..mesh.quads.len()).filter(|&q| mesh.quads[q].contains(&up)).collect();
         assert_eq!(block.len(), 4);
-        let (pc, s, e) = (mesh.vertices.positions[up as usize], mesh.vertices.on_surface[up as usize], mesh.vertices.entity[up as usize]);
+        let (pc, s, e) = (
+            mesh.vertices.positions[up as usize],
+            mesh.vertices.on_surface[up as usize],
+            mesh.vertices.entity[up as usize],
+        );
         let h = 1.0 / n as f64;
         mesh.vertices.positions[up as usize] = pc + Vec3::new(0.0, 0.3 * h, 0.0);
         let down = mesh.vertices.push(pc - Vec3::new(0.0, 0.3 * h, 0.0), s, e);

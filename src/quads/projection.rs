@@ -304,11 +304,7 @@ impl<'a> SurfaceProjector<'a> {
 /// `None` past the ends of an open one.
 fn shift(s: usize, k: isize, n: usize, closed: bool) -> Option<usize> {
     let j = s as isize + k;
-    if closed {
-        Some(j.rem_euclid(n as isize) as usize)
-    } else {
-        (0..n as isize).contains(&j).then_some(j as usize)
-    }
+    if closed { Some(j.rem_euclid(n as isize) as usize) } else { (0..n as isize).contains(&j).then_some(j as usize) }
 }
 
 /// One [`FaceIndex`] per model face: its triangles as a compact mesh and a
@@ -361,7 +357,10 @@ mod tests {
             let p = proj.project_to_face(0, &Vec3::new(x, y, rng.random_range(-0.3..0.3))).unwrap();
             assert!((p.position - Vec3::new(x, y, 0.0)).norm() < 1e-12);
             assert!((proj.position_of(&p.on_surface) - p.position).norm() < 1e-12);
-            assert!(p.on_surface.bary.iter().all(|&b| b >= 0.0) && (p.on_surface.bary.iter().sum::<f64>() - 1.0).abs() < 1e-12);
+            assert!(
+                p.on_surface.bary.iter().all(|&b| b >= 0.0)
+                    && (p.on_surface.bary.iter().sum::<f64>() - 1.0).abs() < 1e-12
+            );
         }
     }
 
@@ -372,7 +371,8 @@ mod tests {
         let model = quad_model(&topo, &detect_features(&mesh, &topo, 30.0));
         let proj = SurfaceProjector::new(&mesh, &topo, &model);
         // The face z = 1 and a point beyond its edge x = 1, nearer the face x = 1.
-        let top = model.face_per_triangle[(0..mesh.n_faces()).find(|&t| mesh.face_normal(FaceId::new(t)).z > 0.9).unwrap()];
+        let top =
+            model.face_per_triangle[(0..mesh.n_faces()).find(|&t| mesh.face_normal(FaceId::new(t)).z > 0.9).unwrap()];
         let p = proj.project_to_face(top, &Vec3::new(1.3, 0.2, 0.9)).unwrap();
         assert!((p.position - Vec3::new(1.0, 0.2, 1.0)).norm() < 1e-12);
         assert_eq!(model.face_per_triangle[p.on_surface.face.idx()], top);
@@ -390,7 +390,8 @@ mod tests {
             for _ in 0..20 {
                 let t = rng.random_range(0.05..0.95);
                 let on = a + (b - a) * t;
-                let off = on + Vec3::new(rng.random_range(-0.1..0.1), rng.random_range(-0.1..0.1), rng.random_range(-0.1..0.1));
+                let off = on
+                    + Vec3::new(rng.random_range(-0.1..0.1), rng.random_range(-0.1..0.1), rng.random_range(-0.1..0.1));
                 let full = proj.project_to_curve(c as u32, &off, None).unwrap();
                 // A hint at the curve's start: the walk must travel the whole way.
                 let start = proj.project_to_curve(c as u32, &a, None).unwrap().on_surface;
@@ -425,6 +426,32 @@ mod tests {
             assert!((back - r).abs() < 1e-12 || (back - r).abs() > 4.0 - 1e-12, "{s}: {back}");
             let q = p.position;
             assert!(q.x.abs() < 1e-12 || (q.x - 1.0).abs() < 1e-12 || q.y.abs() < 1e-12 || (q.y - 1.0).abs() < 1e-12);
+        }
+    }
+
+    #[test]
+    fn points_near_an_icosphere_land_on_its_facets() {
+        let mesh = fixtures::icosphere(3);
+        let topo = Topology::new(&mesh);
+        let model = quad_model(&topo, &detect_features(&mesh, &topo, 30.0));
+        assert_eq!(model.n_faces, 1);
+        let proj = SurfaceProjector::new(&mesh, &topo, &model);
+        // Every facet is at least this far from the centre.
+        let inner = (0..mesh.n_faces())
+            .map(|f| mesh.face_normal(FaceId::new(f)).dot(&mesh.corners(FaceId::new(f))[0]))
+            .fold(f64::INFINITY, f64::min);
+        let mut rng = StdRng::seed_from_u64(17);
+        for _ in 0..200 {
+            let d = Vec3::new(rng.random_range(-1.0..1.0), rng.random_range(-1.0..1.0), rng.random_range(-1.0..1.0));
+            if d.norm() < 0.1 {
+                continue;
+            }
+            let x = d.normalize() * rng.random_range(0.8..1.2);
+            let p = proj.project_to_face(0, &x).unwrap();
+            let r = p.position.norm();
+            assert!(r <= 1.0 + 1e-12 && r >= inner - 1e-12, "radius {r}");
+            assert!((p.position.normalize() - x.normalize()).norm() < 0.1, "a nearby facet");
+            assert!((proj.position_of(&p.on_surface) - p.position).norm() < 1e-12);
         }
     }
 
