@@ -110,8 +110,8 @@ fn gmsh_opens_the_cube_in_every_msh_variant_with_its_model_and_no_inverted_quad(
         if opts.msh_version == MshVersion::V41 {
             // $Entities: 8 corners, 12 curves, 6 faces; each face bounded by 4 curves, each curve by 2 corners.
             assert_eq!(r["entities"], json!([8, 12, 6]), "{name}: {r}");
-            assert_eq!(r["surface_bounds"], json!([4; 6]), "{name}: {r}");
-            assert_eq!(r["curve_bounds"], json!([2; 12]), "{name}: {r}");
+            assert_eq!(r["surface_bounds"], json!(vec![4; 6]), "{name}: {r}");
+            assert_eq!(r["curve_bounds"], json!(vec![2; 12]), "{name}: {r}");
             assert_eq!(r["elements"]["0:15"], json!(8), "{name}: {r}");
         }
     }

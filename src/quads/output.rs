@@ -6,11 +6,11 @@
 //! curve `c` bounded by its end corners (`+start, −end`; `[p, −p]` for a
 //! closed curve), surface `f + 1` is model face `f` bounded by the curves
 //! on its border. Each node is classified on the entity of its vertex
-//! ([`ModelEntity`]), node tag = vertex index + 1; quadrangles (type 3, or
-//! 10 for order 2) lie on their model face with element tag = quad index
-//! + 1 (the VTU cell order), then the curve edges as lines (type 1, or 8)
-//! on their curve, then one point element (type 15) per corner, as Gmsh's
-//! own meshes have.
+//! ([`ModelEntity`]), with node tag `vertex index + 1`; quadrangles (type
+//! 3, or 10 for order 2) lie on their model face with element tag
+//! `quad index + 1` (the VTU cell order), then come the curve edges as
+//! lines (type 1, or 8) on their curve, then one point element (type 15)
+//! per corner, as Gmsh's own meshes have.
 //!
 //! `quads.vtu`: VTK_QUAD (9) or VTK_BIQUADRATIC_QUAD (28) cells, one per
 //! quad in quad order, with cell data `scaled_jacobian`,
@@ -41,15 +41,15 @@ fn entity_key(e: ModelEntity) -> (u8, EntityTag) {
     }
 }
 
+/// Point, curve and surface entities of a model.
+type Entities = (Vec<PointEntity>, Vec<CurveEntity>, Vec<SurfaceEntity>);
+
 /// The point, curve and surface entities of `model`, with the positions of
 /// the mesh vertices at its corners.
 ///
 /// # Errors
 /// [`WriteError::Invalid`] when a corner has no mesh vertex.
-fn entities(
-    mesh: &QuadMesh,
-    model: &QuadModel,
-) -> Result<(Vec<PointEntity>, Vec<CurveEntity>, Vec<SurfaceEntity>), WriteError> {
+fn entities(mesh: &QuadMesh, model: &QuadModel) -> Result<Entities, WriteError> {
     let mut corner_position = vec![None; model.corners.len()];
     for (v, e) in mesh.vertices.entity.iter().enumerate() {
         if let ModelEntity::Corner(i) = *e
