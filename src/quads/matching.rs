@@ -31,7 +31,7 @@ const FIRST_RADIUS: u32 = 4;
 /// Largest window searched (triangles): a face this big with a triangle no
 /// window can pair is subdivided without searching it whole, as an
 /// unbounded search would cost `O(n²)`.
-pub const MAX_WINDOW: usize = 16_384;
+pub const MAX_WINDOW: usize = 4096;
 
 /// What the completion did.
 #[derive(Debug, Clone, Default, PartialEq, Eq)]
@@ -40,20 +40,25 @@ pub struct Completion {
     pub n_windows: usize,
     /// Augmenting paths applied.
     pub n_augmentations: usize,
-    /// Triangles still free: no augmenting path within their windows.
+    /// The first root of each failing face: no augmenting path within its
+    /// windows.
     pub unmatched: Vec<u32>,
 }
 
 /// Completes `partner` (the partner of each triangle or [`NONE`]) by
 /// augmenting paths over the pairs of `graph`, roots taken in index order.
+/// Once a root of a model face (`model_face_per_triangle`) fails, the face
+/// will be subdivided whole, so its later roots are not searched.
 ///
 /// # Errors
 /// [`Cancelled`] when `progress` is cancelled.
 pub fn complete_matching(
     graph: &DualGraph,
+    model_face_per_triangle: &[u32],
     partner: &mut [u32],
     progress: &Progress,
 ) -> Result<Completion, Cancelled> {
+    let mut failed_faces: Vec<u32> = Vec::new();
     let roots: Vec<u32> = (0..partner.len() as u32).filter(|&t| partner[t as usize] == NONE).collect();
     let mut out = Completion::default();
     let mut window = Window::new(partner.len());
@@ -62,7 +67,8 @@ pub fn complete_matching(
             progress.check()?;
             progress.set(i as f64 / roots.len() as f64);
         }
-        if partner[root as usize] != NONE {
+        let face = model_face_per_triangle[root as usize];
+        if partner[root as usize] != NONE || failed_faces.contains(&face) {
             continue;
         }
         let mut radius = FIRST_RADIUS;
@@ -75,6 +81,7 @@ pub fn complete_matching(
             }
             if whole || window.members.len() >= MAX_WINDOW {
                 out.unmatched.push(root);
+                failed_faces.push(face);
                 break;
             }
             radius = radius.saturating_mul(2);
@@ -239,8 +246,8 @@ impl<'a> BlossomSearch<'a> {
                 if self.base[v as usize] == self.base[to as usize] || self.mate[v as usize] == to {
                     continue;
                 }
-                let to_is_outer =
-                    to == root || (self.mate[to as usize] != NONE && self.parent[self.mate[to as usize] as usize] != NONE);
+                let to_is_outer = to == root
+                    || (self.mate[to as usize] != NONE && self.parent[self.mate[to as usize] as usize] != NONE);
                 if to_is_outer {
                     let base = self.lowest_common_base(v, to);
                     self.in_blossom.fill(false);

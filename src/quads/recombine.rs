@@ -44,7 +44,8 @@ pub struct RecombineStats {
     pub n_augmenting_paths: usize,
     /// Windows searched for augmenting paths.
     pub n_windows: usize,
-    /// Triangles no augmenting path could pair.
+    /// Triangles left free by the completion (no augmenting path, or in a
+    /// face already known to need subdivision).
     pub n_unmatched_after_matching: usize,
     /// Model faces midpoint-subdivided (the last resort; should be 0).
     pub n_subdivided_faces: usize,
@@ -85,12 +86,13 @@ pub fn recombine(tri: SurfaceTriangulation, progress: &Progress) -> Result<(Quad
     progress.check()?;
 
     let t = Instant::now();
-    let completion = complete_matching(&graph, &mut partner, &progress.sub(0.2, 0.9))?;
+    let completion = complete_matching(&graph, &tri.model_face_per_triangle, &mut partner, &progress.sub(0.2, 0.9))?;
     stats.n_windows = completion.n_windows;
     stats.n_augmenting_paths = completion.n_augmentations;
-    stats.n_unmatched_after_matching = completion.unmatched.len();
-    stats.n_matching_pairs =
-        (0..partner.len()).filter(|&t| partner[t] != NONE && (t as u32) < partner[t] && greedy[t] != partner[t]).count();
+    stats.n_unmatched_after_matching = partner.iter().filter(|&&p| p == NONE).count();
+    stats.n_matching_pairs = (0..partner.len())
+        .filter(|&t| partner[t] != NONE && (t as u32) < partner[t] && greedy[t] != partner[t])
+        .count();
     stats.matching_seconds = t.elapsed().as_secs_f64();
     progress.check()?;
 
@@ -208,11 +210,8 @@ mod tests {
                 uses.entry((a.min(b), a.max(b))).or_default().push((faces[t], [a, b]));
             }
         }
-        let mut curve: Vec<[u32; 2]> = uses
-            .values()
-            .filter(|u| u.len() == 1 || u[0].0 != u[1].0)
-            .map(|u| u[0].1)
-            .collect();
+        let mut curve: Vec<[u32; 2]> =
+            uses.values().filter(|u| u.len() == 1 || u[0].0 != u[1].0).map(|u| u[0].1).collect();
         curve.sort_unstable();
         for &[a, b] in &curve {
             for v in [a, b] {
@@ -254,8 +253,7 @@ mod tests {
             DelaunayTriangulation::bulk_load(points.iter().map(|p| Point2::new(p[0], p[1])).collect())
                 .expect("finite points");
         let positions: Vec<[f64; 2]> = dt.vertices().map(|v| [v.position().x, v.position().y]).collect();
-        let triangles: Vec<[u32; 3]> =
-            dt.inner_faces().map(|f| f.vertices().map(|v| v.fix().index() as u32)).collect();
+        let triangles: Vec<[u32; 3]> = dt.inner_faces().map(|f| f.vertices().map(|v| v.fix().index() as u32)).collect();
         let n = triangles.len();
         planar(&positions, triangles, vec![0; n])
     }
@@ -465,11 +463,13 @@ mod tests {
         }
         let (mesh, stats) = run(&tri);
         assert_valid(&mesh);
-        assert!(mesh.quads.iter().zip(&mesh.model_face_per_quad).all(|(q, &f)| {
-            let below = q.iter().all(|&x| x % (n + 1) >= x / (n + 1));
-            let above = q.iter().all(|&x| x % (n + 1) <= x / (n + 1));
-            if f == 0 { below } else { above }
-        }) || stats.n_subdivided_faces > 0);
+        assert!(
+            mesh.quads.iter().zip(&mesh.model_face_per_quad).all(|(q, &f)| {
+                let below = q.iter().all(|&x| x % (n + 1) >= x / (n + 1));
+                let above = q.iter().all(|&x| x % (n + 1) <= x / (n + 1));
+                if f == 0 { below } else { above }
+            }) || stats.n_subdivided_faces > 0
+        );
     }
 
     #[test]
@@ -480,9 +480,8 @@ mod tests {
         assert_eq!(a.quads, b.quads);
         assert_eq!(a.vertices.positions, b.vertices.positions);
         assert_eq!(a.curve_edges, b.curve_edges);
-        let counts = |s: &RecombineStats| {
-            (s.n_greedy_pairs, s.n_matching_pairs, s.n_windows, s.n_subdivided_faces, s.n_quads)
-        };
+        let counts =
+            |s: &RecombineStats| (s.n_greedy_pairs, s.n_matching_pairs, s.n_windows, s.n_subdivided_faces, s.n_quads);
         assert_eq!(counts(&sa), counts(&sb));
     }
 

@@ -85,8 +85,7 @@ pub fn subdivide(
     flagged: &[bool],
     curve_edges: &mut Vec<CurveEdge>,
 ) -> (Vec<[u32; 4]>, Vec<u32>, usize) {
-    let curve_of: HashMap<(u32, u32), u32> =
-        curve_edges.iter().map(|&(c, [a, b])| ((a.min(b), a.max(b)), c)).collect();
+    let curve_of: HashMap<(u32, u32), u32> = curve_edges.iter().map(|&(c, [a, b])| ((a.min(b), a.max(b)), c)).collect();
     let mut midpoints: HashMap<(u32, u32), u32> = HashMap::new();
     let mut quads = Vec::with_capacity(elements.len());
     let mut faces = Vec::with_capacity(elements.len());
