@@ -96,11 +96,8 @@ pub fn edge_surface_point(surface: &TriMesh, topo: &Topology, p: &EdgePoint) -> 
     } else {
         (p.a, p.b, p.t)
     };
-    let face = if v == w {
-        *topo.vertex_faces(v).first()?
-    } else {
-        *topo.edge_faces(topo.edge_between(v, w)?).first()?
-    };
+    let face =
+        if v == w { *topo.vertex_faces(v).first()? } else { *topo.edge_faces(topo.edge_between(v, w)?).first()? };
     let tri = surface.triangles[face.idx()];
     let mut bary = [0.0; 3];
     for (b, &x) in bary.iter_mut().zip(&tri) {
@@ -182,7 +179,20 @@ fn atlas_min_segments(atlas: &Atlas) -> Vec<usize> {
     for e in &ends {
         *count.entry(*e).or_default() += 1;
     }
-    atlas.curves.iter().zip(&ends).map(|(c, e)| if c.chain.is_closed() { 3 } else if count[e] > 1 { 2 } else { 1 }).collect()
+    atlas
+        .curves
+        .iter()
+        .zip(&ends)
+        .map(|(c, e)| {
+            if c.chain.is_closed() {
+                3
+            } else if count[e] > 1 {
+                2
+            } else {
+                1
+            }
+        })
+        .collect()
 }
 
 /// Indices of the chain vertices where a feature curve's pieces end: its

@@ -99,7 +99,8 @@ impl Front<'_> {
     fn add_segment(&mut self, a: Vec3, b: Vec3) {
         let id = self.boundary.len() as u32;
         let steps = ((b - a).norm() / (0.25 * self.grid.cell)).ceil().max(1.0) as usize;
-        let mut keys: Vec<[i64; 3]> = (0..=steps).map(|i| self.grid.key(&(a + (b - a) * (i as f64 / steps as f64)))).collect();
+        let mut keys: Vec<[i64; 3]> =
+            (0..=steps).map(|i| self.grid.key(&(a + (b - a) * (i as f64 / steps as f64)))).collect();
         keys.sort_unstable();
         keys.dedup();
         for k in keys {

@@ -144,12 +144,7 @@ pub fn fix_parity(curves: &mut [ParityCurve], n_faces: usize) -> ParityStats {
             if odd[v] {
                 let curve = &mut curves[c];
                 let (after, _) = best_bump(curve);
-                bumps.push(CurveBump {
-                    curve: c as u32,
-                    target_segments: curve.target,
-                    before: curve.segments,
-                    after,
-                });
+                bumps.push(CurveBump { curve: c as u32, target_segments: curve.target, before: curve.segments, after });
                 curve.segments = after;
                 odd[v] = false;
                 odd[up] ^= true;

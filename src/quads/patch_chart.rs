@@ -200,7 +200,8 @@ impl<'a> PatchChart<'a> {
     /// True when the chart keeps the orientation of the surface on local
     /// triangle `t` (positive `(∂X/∂u × ∂X/∂v) · n`).
     pub fn is_direct(&self, t: u32) -> bool {
-        self.jacobian(t).is_some_and(|[ju, jv]| ju.cross(&jv).dot(&self.surface.face_area_vector(self.source_face(t))) > 0.0)
+        self.jacobian(t)
+            .is_some_and(|[ju, jv]| ju.cross(&jv).dot(&self.surface.face_area_vector(self.source_face(t))) > 0.0)
     }
 }
 

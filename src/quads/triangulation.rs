@@ -124,12 +124,7 @@ pub fn surface_triangulation(
 }
 
 /// `(u, v)` in `patch` of boundary vertex `g`.
-fn boundary_uv(
-    boundary: &BoundaryMesh,
-    local: &HashMap<VertexId, u32>,
-    patch: &AtlasPatch,
-    g: u32,
-) -> Option<Vec2> {
+fn boundary_uv(boundary: &BoundaryMesh, local: &HashMap<VertexId, u32>, patch: &AtlasPatch, g: u32) -> Option<Vec2> {
     let p = boundary.location[g as usize];
     let a = patch.uv[*local.get(&p.a)? as usize];
     let b = patch.uv[*local.get(&p.b)? as usize];
@@ -209,8 +204,35 @@ fn triangulate_patch(
     points.extend(singular);
     points.extend(inner);
 
-    let kept = constrained_delaunay(&points, nb, &segments).map_err(fail)?;
     let direct = patch_is_direct(&chart, patch);
+    // Delaunay in (u, v) is not Delaunay in 3D: where the chart distorts, a
+    // triangle may fold over in 3D; its interior points are dropped and the
+    // patch triangulated again (a few rounds).
+    let mut removed = vec![false; points.len()];
+    let mut kept = Vec::new();
+    for _ in 0..4 {
+        let active: Vec<usize> = (0..points.len()).filter(|&k| !removed[k]).collect();
+        let subset: Vec<ChartPoint> = active.iter().map(|&k| points[k]).collect();
+        kept = constrained_delaunay(&subset, nb, &segments)
+            .map_err(fail)?
+            .into_iter()
+            .map(|t| t.map(|v| active[v]))
+            .collect();
+        let mut again = false;
+        for t in &kept {
+            if !is_upright(&chart, surface, &points, t, direct) {
+                for &v in t {
+                    if v >= nb + n_singular {
+                        removed[v] = true;
+                        again = true;
+                    }
+                }
+            }
+        }
+        if !again {
+            break;
+        }
+    }
     let model_face = model.face_per_triangle[chart.source_face(0).idx()];
 
     // Interior points used by a kept triangle, renumbered in point order.
@@ -244,6 +266,17 @@ fn triangulate_patch(
         out.cross.push(cross.try_normalize(0.0).unwrap_or(cross));
     }
     Ok(out)
+}
+
+/// True when the triangle `t` of chart points (counter-clockwise in `(u, v)`)
+/// faces the side of the surface normal in 3D (after reversal when the
+/// chart is indirect).
+fn is_upright(chart: &PatchChart, surface: &TriMesh, points: &[ChartPoint], t: &[usize; 3], direct: bool) -> bool {
+    let p = t.map(|v| chart.position(points[v].tri, &points[v].bary));
+    let c = (points[t[0]].uv + points[t[1]].uv + points[t[2]].uv) / 3.0;
+    let Some((lt, _)) = chart.locate_near(&c) else { return true };
+    let a = (p[1] - p[0]).cross(&(p[2] - p[0])).dot(&surface.face_normal(chart.source_face(lt)));
+    if direct { a > 0.0 } else { a < 0.0 }
 }
 
 /// True when the patch's chart keeps the surface's orientation on most of
@@ -500,7 +533,8 @@ mod tests {
                     .filter(|&&w| {
                         let d = tri.vertices.positions[w as usize] - p;
                         let (a, b) = (d.dot(&t1).abs(), d.dot(&t2).abs());
-                        (a - size).abs() < 0.2 * size && b < 0.2 * size || (b - size).abs() < 0.2 * size && a < 0.2 * size
+                        (a - size).abs() < 0.2 * size && b < 0.2 * size
+                            || (b - size).abs() < 0.2 * size && a < 0.2 * size
                     })
                     .count();
                 along == 4
@@ -536,7 +570,9 @@ mod tests {
         for sg in &s.field.singularities {
             let x = s.mesh.positions[sg.vertex.idx()];
             assert!(
-                tri.singular_vertices.iter().any(|&(v, i)| i == 1 && (tri.vertices.positions[v as usize] - x).norm() < 1e-12),
+                tri.singular_vertices
+                    .iter()
+                    .any(|&(v, i)| i == 1 && (tri.vertices.positions[v as usize] - x).norm() < 1e-12),
                 "no vertex at the singularity at {x:?}"
             );
         }
