@@ -203,7 +203,9 @@ mod tests {
             let sp = SurfacePoint { face: FaceId(i as u32), bary: [1.0, 0.0, 0.0] };
             tri.vertices.push(Vec3::new(p[0], p[1], 0.0), sp, ModelEntity::Face(0));
         }
-        let mut uses: HashMap<(u32, u32), Vec<(u32, [u32; 2])>> = HashMap::new();
+        // Per undirected edge: (model face, directed edge) of each use.
+        type Uses = Vec<(u32, [u32; 2])>;
+        let mut uses: HashMap<(u32, u32), Uses> = HashMap::new();
         for (t, tv) in triangles.iter().enumerate() {
             for i in 0..3 {
                 let (a, b) = (tv[i], tv[(i + 1) % 3]);
@@ -279,7 +281,7 @@ mod tests {
         points.extend((0..n).map(|_| [rng.random_range(0.0..1.0), rng.random_range(0.0..1.0)]));
         loop {
             let tri = delaunay(&points);
-            if tri.triangles.len() % 2 == 0 {
+            if tri.triangles.len().is_multiple_of(2) {
                 return tri;
             }
             points.pop();
