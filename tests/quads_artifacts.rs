@@ -48,7 +48,10 @@ const MESHIO: &str = r#"
 out = {}
 for p in sys.argv[1:]:
     m = meshio.read(p)
-    out[p] = {"points": len(m.points), "cells": {c.type: len(c.data) for c in m.cells},
+    cells = {}
+    for c in m.cells:
+        cells[c.type] = cells.get(c.type, 0) + len(c.data)
+    out[p] = {"points": len(m.points), "cells": cells,
               "cell_data": sorted(m.cell_data.keys()), "point_data": sorted(m.point_data.keys())}
 print(json.dumps(out))
 "#;
