@@ -19,14 +19,17 @@ use crate::io::WriteError;
 use crate::mesh::{Topology, TriMesh};
 use crate::progress::Progress;
 
+use super::durable::Syncer;
 use super::error::PipelineError;
 use super::params::PipelineParams;
 use super::report::StageReport;
 use super::run::{Products, StageOutput};
 
-/// Write `out_dir/name` with `f` through a buffer and flush it.
+/// Write `out_dir/name` with `f` through a buffer, flush it and hand it to
+/// `syncer` (on disk before the pipeline returns).
 fn write_artifact(
     out_dir: &Path,
+    syncer: &Syncer,
     name: &str,
     f: impl FnOnce(&mut BufWriter<File>) -> Result<(), WriteError>,
 ) -> Result<String, PipelineError> {
@@ -35,7 +38,7 @@ fn write_artifact(
     let mut w = BufWriter::new(File::create(&path).map_err(|e| err(e.into()))?);
     f(&mut w).map_err(err)?;
     let file = w.into_inner().map_err(|e| err(e.into_error().into()))?;
-    file.sync_all().map_err(|e| err(e.into()))?;
+    syncer.sync(path.clone(), file).map_err(|e| err(e.into()))?;
     Ok(name.to_string())
 }
 
@@ -49,6 +52,7 @@ pub fn run_atlas(
     params: &PipelineParams,
     products: &mut Products,
     out_dir: &Path,
+    syncer: &Syncer,
     progress: &Progress,
 ) -> Result<StageOutput, PipelineError> {
     let atlas = build_atlas(&products.surface, &params.atlas, progress).map_err(|e| match e {
@@ -61,11 +65,11 @@ pub fn run_atlas(
     // The MSH file (with the parametrizations) takes as long as both VTU
     // files together: write it beside them on the pool.
     let (msh, (vtu, uv)) = rayon::join(
-        || write_artifact(out_dir, "atlas.msh", |w| write_atlas_msh_as(&atlas, w, &params.output)),
+        || write_artifact(out_dir, syncer, "atlas.msh", |w| write_atlas_msh_as(&atlas, w, &params.output)),
         || {
             rayon::join(
-                || write_artifact(out_dir, "atlas.vtu", |w| write_atlas_vtu(&atlas, w)),
-                || write_artifact(out_dir, "atlas_uv.vtu", |w| write_atlas_uv_vtu(&atlas, w)),
+                || write_artifact(out_dir, syncer, "atlas.vtu", |w| write_atlas_vtu(&atlas, w)),
+                || write_artifact(out_dir, syncer, "atlas_uv.vtu", |w| write_atlas_uv_vtu(&atlas, w)),
             )
         },
     );
@@ -83,6 +87,7 @@ pub fn run_crossfield(
     params: &PipelineParams,
     products: &mut Products,
     out_dir: &Path,
+    syncer: &Syncer,
     progress: &Progress,
 ) -> Result<StageOutput, PipelineError> {
     let topo = Topology::new(&products.surface);
@@ -98,9 +103,11 @@ pub fn run_crossfield(
     progress.check()?;
     let write_start = std::time::Instant::now();
     let artifacts = vec![
-        write_artifact(out_dir, "crossfield.vtu", |w| write_crossfield_vtu(&field, surface, w))?,
-        write_artifact(out_dir, "singularities.json", |w| Ok(write_singularities_json(&field, w)?))?,
-        write_artifact(out_dir, "crossfield.msh", |w| write_crossfield_msh_as(&field, surface, w, &params.output))?,
+        write_artifact(out_dir, syncer, "crossfield.vtu", |w| write_crossfield_vtu(&field, surface, w))?,
+        write_artifact(out_dir, syncer, "singularities.json", |w| Ok(write_singularities_json(&field, w)?))?,
+        write_artifact(out_dir, syncer, "crossfield.msh", |w| {
+            write_crossfield_msh_as(&field, surface, w, &params.output)
+        })?,
     ];
     let write_seconds = write_start.elapsed().as_secs_f64();
     let report = StageReport::Crossfield(Box::new(field.report));
@@ -113,6 +120,7 @@ pub fn run_frames(
     params: &PipelineParams,
     products: &mut Products,
     out_dir: &Path,
+    syncer: &Syncer,
     progress: &Progress,
 ) -> Result<StageOutput, PipelineError> {
     let field = compute_frame_field(&products.surface, products.volume.as_ref(), &params.frames, progress).map_err(
@@ -128,8 +136,8 @@ pub fn run_frames(
     progress.check()?;
     let write_start = std::time::Instant::now();
     let artifacts = vec![
-        write_artifact(out_dir, "frames.vtu", |w| write_frames_vtu(&field, w))?,
-        write_artifact(out_dir, "frames_singular.vtu", |w| write_singular_edges_vtu(&field, w))?,
+        write_artifact(out_dir, syncer, "frames.vtu", |w| write_frames_vtu(&field, w))?,
+        write_artifact(out_dir, syncer, "frames_singular.vtu", |w| write_singular_edges_vtu(&field, w))?,
     ];
     let write_seconds = write_start.elapsed().as_secs_f64();
     let report = StageReport::Frames(Box::new(field.report));
