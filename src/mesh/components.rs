@@ -134,6 +134,40 @@ pub fn any_nonmanifold_vertex(mesh: &TriMesh, topo: &Topology, candidates: impl 
     candidates.into_iter().any(|v| count_fans(mesh, topo, v, &mut parent) > 1)
 }
 
+/// True when walking around `v` across its edges, from the first of its
+/// triangles `faces`, comes back to it through interior edges after visiting
+/// every one of them: the triangles then form exactly one fan. `O(d)` with no
+/// search, the case of almost every vertex of a closed surface; any other
+/// case (a boundary or non-manifold edge, a second fan) answers `false` and
+/// is counted by the union–find of [`count_fans`].
+fn is_one_closed_fan(mesh: &TriMesh, topo: &Topology, v: VertexId, faces: &[FaceId]) -> bool {
+    let edges_at_v = |f: FaceId| {
+        let (t, fe) = (mesh.triangles[f.idx()], topo.face_edges[f.idx()]);
+        let mut at = (0..3).filter(|&k| t[k] == v || t[(k + 1) % 3] == v).map(|k| fe[k]);
+        Some([at.next()?, at.next()?])
+    };
+    let start = faces[0];
+    let Some([_, mut e]) = edges_at_v(start) else { return false };
+    let (mut f, mut visited) = (start, 1);
+    loop {
+        let g = match topo.edge_faces(e) {
+            [a, b] if *a == f => *b,
+            [a, b] if *b == f => *a,
+            _ => return false,
+        };
+        if g == start {
+            return visited == faces.len();
+        }
+        visited += 1;
+        if visited > faces.len() {
+            return false;
+        }
+        let Some([x, y]) = edges_at_v(g) else { return false };
+        e = if x == e { y } else { x };
+        f = g;
+    }
+}
+
 /// Number of fans of the triangles around `v`: a union–find over the
 /// triangles of the one-ring, in the reusable buffer `parent` (no allocation
 /// per vertex once the buffer has grown to the largest valence). `vertex_faces`
@@ -143,6 +177,9 @@ fn count_fans(mesh: &TriMesh, topo: &Topology, v: VertexId, parent: &mut Vec<u32
     let faces = topo.vertex_faces(v);
     if faces.len() < 2 {
         return faces.len();
+    }
+    if is_one_closed_fan(mesh, topo, v, faces) {
+        return 1;
     }
     parent.clear();
     parent.extend(0..faces.len() as u32);

@@ -29,6 +29,7 @@
 //! the longest edge, `D` the bounding-box diagonal.
 
 use hashbrown::HashMap;
+use rayon::prelude::*;
 use serde::Serialize;
 
 use super::repair::ZERO_AREA_RELATIVE_HEIGHT;
@@ -79,7 +80,7 @@ pub fn resolve_zero_area_triangles(
 ) -> ZeroAreaResolution {
     let mut out = ZeroAreaResolution::default();
     let eps = ZERO_AREA_RELATIVE_HEIGHT * diagonal;
-    if !triangles.iter().any(|t| is_zero_area(positions, t, diagonal)) {
+    if !triangles.par_iter().any(|t| is_zero_area(positions, t, diagonal)) {
         return out;
     }
     collapse_needles(positions, triangles, eps, &mut out);

@@ -9,7 +9,7 @@
 //! reported. Closed, orientable components with negative enclosed volume are
 //! then reversed as a whole so normals point outward.
 
-use super::components::connected_components;
+use super::components::{Components, connected_components};
 use super::{FaceId, Topology, TriMesh};
 use serde::Serialize;
 use std::collections::VecDeque;
@@ -29,6 +29,13 @@ pub struct OrientationReport {
 /// `topo` in step with `mesh`.
 pub fn orient_consistently(mesh: &mut TriMesh, topo: &mut Topology) -> OrientationReport {
     let comps = connected_components(topo);
+    orient_components(mesh, topo, &comps)
+}
+
+/// [`orient_consistently`] with the edge-connected components already
+/// known (`comps` of `topo`), so that a caller who also summarises the
+/// topology computes them once: flipping triangles changes no component.
+pub fn orient_components(mesh: &mut TriMesh, topo: &mut Topology, comps: &Components) -> OrientationReport {
     let mut report = OrientationReport::default();
     let mut flip = vec![false; mesh.n_faces()];
     let mut seen = vec![false; mesh.n_faces()];

@@ -33,10 +33,11 @@
 //!
 //! Nothing is removed silently: every removal is a count in [`RepairReport`].
 
+use super::components::{connected_components, nonmanifold_vertices};
 use super::degenerate::resolve_zero_area_triangles;
 use super::equal_keys::first_index_of_equal_key;
-use super::orientation::orient_consistently;
-use super::summary::{TopologySummary, topology_summary};
+use super::orientation::orient_components;
+use super::summary::{TopologySummary, topology_summary_of};
 use super::weld::weld_vertices;
 use super::{MeshError, Topology, TriMesh};
 use crate::geom::{BoundingBox, Vec3};
@@ -178,13 +179,17 @@ pub fn repair_triangle_soup(
     }
 
     let mut topo = Topology::new(&mesh);
-    let orientation = orient_consistently(&mut mesh, &mut topo);
+    // One component labelling and one non-manifold vertex list serve
+    // orientation and summary (flips change neither); independent, so built
+    // side by side.
+    let (comps, nm_vertices) = rayon::join(|| connected_components(&topo), || nonmanifold_vertices(&mesh, &topo));
+    let orientation = orient_components(&mut mesh, &mut topo, &comps);
     debug_assert!(mesh.validate().is_ok());
     report.n_triangles_flipped = orientation.n_triangles_flipped;
     report.n_components_reversed_outward = orientation.n_components_reversed_outward;
     report.n_nonorientable_components = orientation.n_nonorientable_components;
 
-    let summary = topology_summary(&mesh, &topo);
+    let summary = topology_summary_of(&mesh, &topo, &comps, &nm_vertices);
     report.n_nonmanifold_edges = summary.n_nonmanifold_edges;
     report.n_nonmanifold_vertices = summary.n_nonmanifold_vertices;
     report.n_components = summary.n_components();

@@ -7,7 +7,8 @@
 //! `gᵢ = (2 − χᵢ − bᵢ) / 2`. The mesh χ is `Σ χᵢ` minus the extra counts of
 //! pinched vertices, i.e. `V − E + F` of the whole mesh.
 
-use super::components::{DisjointSets, connected_components, nonmanifold_vertices};
+use super::VertexId;
+use super::components::{Components, DisjointSets, connected_components, nonmanifold_vertices};
 use super::{EdgeId, Topology, TriMesh};
 use serde::Serialize;
 
@@ -72,31 +73,30 @@ impl TopologySummary {
 
 /// Summarize the topology of `mesh`.
 pub fn topology_summary(mesh: &TriMesh, topo: &Topology) -> TopologySummary {
-    let comps = connected_components(topo);
+    topology_summary_of(mesh, topo, &connected_components(topo), &nonmanifold_vertices(mesh, topo))
+}
+
+/// [`topology_summary`] with the edge-connected components of `topo` and
+/// its non-manifold vertices already known: repair computes them once,
+/// side by side, for orientation and summary (flipping triangles changes
+/// neither).
+pub fn topology_summary_of(
+    mesh: &TriMesh,
+    topo: &Topology,
+    comps: &Components,
+    nm_vertices: &[VertexId],
+) -> TopologySummary {
     let k = comps.n_components;
-    let nm_vertices = nonmanifold_vertices(mesh, topo);
     let mut vertex_is_nm = vec![false; mesh.n_vertices()];
-    for v in &nm_vertices {
+    for v in nm_vertices {
         vertex_is_nm[v.idx()] = true;
     }
 
     let mut per = vec![(0usize, 0usize, 0usize, 0usize, false, false); k]; // F, V, E, bnd edges, nm, has_bnd
-    // Vertices per component: mark (vertex, component) pairs once.
-    let mut last_comp_of_vertex = vec![u32::MAX; mesh.n_vertices()];
-    let mut pairs: Vec<(u32, u32)> = Vec::new();
-    for (f, t) in mesh.triangles.iter().enumerate() {
-        let c = comps.component_per_face[f];
+    for &c in &comps.component_per_face {
         per[c as usize].0 += 1;
-        for v in t {
-            if last_comp_of_vertex[v.idx()] != c {
-                last_comp_of_vertex[v.idx()] = c;
-                pairs.push((v.0, c));
-            }
-        }
     }
-    pairs.sort_unstable();
-    pairs.dedup();
-    for &(v, c) in &pairs {
+    for (v, c) in vertex_component_pairs(topo, comps, mesh.n_vertices()) {
         per[c as usize].1 += 1;
         if vertex_is_nm[v as usize] {
             per[c as usize].4 = true;
@@ -148,7 +148,7 @@ pub fn topology_summary(mesh: &TriMesh, topo: &Topology) -> TopologySummary {
             }
         })
         .collect();
-    let used = super::components::referenced_vertices(mesh).iter().filter(|&&u| u).count();
+    let used = (0..mesh.n_vertices()).filter(|&v| !topo.vertex_faces(VertexId::new(v)).is_empty()).count();
     TopologySummary {
         n_vertices: used,
         n_edges: topo.n_edges(),
@@ -160,6 +160,39 @@ pub fn topology_summary(mesh: &TriMesh, topo: &Topology) -> TopologySummary {
         euler_characteristic: used as i64 - topo.n_edges() as i64 + mesh.n_faces() as i64,
         components,
     }
+}
+
+/// Every (vertex, component) incidence once, in vertex order: the distinct
+/// components among the triangles around each vertex (one, except at a
+/// vertex pinching components). Read from the vertex–triangle lists of
+/// `topo`, chunk by chunk on the pool, so no sort of all pairs is needed;
+/// the order does not depend on the thread count.
+fn vertex_component_pairs(topo: &Topology, comps: &Components, n_vertices: usize) -> Vec<(u32, u32)> {
+    use rayon::prelude::*;
+    const CHUNK: usize = 1 << 14;
+    let chunks: Vec<Vec<(u32, u32)>> = (0..n_vertices.div_ceil(CHUNK))
+        .into_par_iter()
+        .map(|i| {
+            let mut out = Vec::with_capacity(CHUNK);
+            let mut distinct: Vec<u32> = Vec::new();
+            for v in i * CHUNK..((i + 1) * CHUNK).min(n_vertices) {
+                let faces = topo.vertex_faces(VertexId::new(v));
+                let Some(first) = faces.first() else { continue };
+                let c0 = comps.component_per_face[first.idx()];
+                if faces.iter().all(|f| comps.component_per_face[f.idx()] == c0) {
+                    out.push((v as u32, c0));
+                    continue;
+                }
+                distinct.clear();
+                distinct.extend(faces.iter().map(|f| comps.component_per_face[f.idx()]));
+                distinct.sort_unstable();
+                distinct.dedup();
+                out.extend(distinct.iter().map(|&c| (v as u32, c)));
+            }
+            out
+        })
+        .collect();
+    chunks.concat()
 }
 
 #[cfg(test)]

@@ -73,7 +73,10 @@ impl Topology {
     /// Build the topology of `mesh` (which must satisfy [`TriMesh::validate`]).
     pub fn new(mesh: &TriMesh) -> Self {
         let n_f = mesh.n_faces();
-        let keys = sorted_half_edges(mesh);
+        // The edge table and the vertex–triangle lists are independent passes
+        // over the triangles: build them side by side on the pool.
+        let (keys, (vertex_face_offsets, vertex_faces)) =
+            rayon::join(|| sorted_half_edges(mesh), || vertex_face_csr(mesh));
 
         let mut edges = Vec::with_capacity(keys.len() / 2 + 1);
         let mut face_edges = vec![[EdgeId(0); 3]; n_f];
@@ -89,8 +92,6 @@ impl Topology {
             edge_faces.push(FaceId(key.face));
         }
         edge_face_offsets.push(edge_faces.len() as u32);
-
-        let (vertex_face_offsets, vertex_faces) = vertex_face_csr(mesh);
         let topo = Self { edges, face_edges, edge_face_offsets, edge_faces, vertex_face_offsets, vertex_faces };
         debug_assert!(topo.validate(mesh).is_ok());
         topo

@@ -10,6 +10,7 @@
 //!
 //! This module knows nothing of jobs, HTTP or async runtimes.
 
+pub mod durable;
 pub mod error;
 pub mod memory;
 pub mod params;

@@ -30,6 +30,7 @@ use crate::io::{Format, IoError, LoadOptions, LoadedMesh, RawMesh, WriteError};
 use crate::mesh::{TetMesh, TriMesh};
 use crate::progress::Progress;
 
+use super::durable::Syncer;
 use super::error::PipelineError;
 use super::media_type_for;
 use super::params::{PipelineParams, StageName};
@@ -75,13 +76,14 @@ fn run_stage(
     params: &PipelineParams,
     products: &mut Products,
     out_dir: &Path,
+    syncer: &Syncer,
     progress: &Progress,
 ) -> Result<StageOutput, PipelineError> {
     match stage {
-        StageName::Atlas => super::stages::run_atlas(params, products, out_dir, progress),
-        StageName::Crossfield => super::stages::run_crossfield(params, products, out_dir, progress),
-        StageName::Frames => super::stages::run_frames(params, products, out_dir, progress),
-        StageName::Quads => super::stages::run_quads(params, products, out_dir, progress),
+        StageName::Atlas => super::stages::run_atlas(params, products, out_dir, syncer, progress),
+        StageName::Crossfield => super::stages::run_crossfield(params, products, out_dir, syncer, progress),
+        StageName::Frames => super::stages::run_frames(params, products, out_dir, syncer, progress),
+        StageName::Quads => super::stages::run_quads(params, products, out_dir, syncer, progress),
     }
 }
 
@@ -114,10 +116,11 @@ fn timed<T>(timings: &mut Vec<StepTiming>, name: &str, f: impl FnOnce() -> T) ->
     out
 }
 
-/// Writes `out_dir/name` with `f` (the writers buffer internally), syncs it
-/// and returns its size.
+/// Writes `out_dir/name` with `f` (the writers buffer internally), hands it
+/// to `syncer` (or syncs it now when `syncer` is `None`) and returns its size.
 fn write_file(
     out_dir: &Path,
+    syncer: Option<&Syncer>,
     name: &str,
     f: impl FnOnce(&mut File) -> Result<(), WriteError>,
 ) -> Result<ArtifactInfo, PipelineError> {
@@ -125,8 +128,12 @@ fn write_file(
     let err = |source: WriteError| PipelineError::Write { path: path.clone(), source };
     let mut file = File::create(&path).map_err(|e| err(e.into()))?;
     f(&mut file).map_err(err)?;
-    file.sync_all().map_err(|e| err(e.into()))?;
-    let bytes = std::fs::metadata(&path).map_err(|e| err(e.into()))?.len();
+    let bytes = file.metadata().map_err(|e| err(e.into()))?.len();
+    let synced = match syncer {
+        Some(s) => s.sync(path.clone(), file),
+        None => file.sync_all(),
+    };
+    synced.map_err(|e| err(e.into()))?;
     Ok(ArtifactInfo { name: name.to_string(), bytes, media_type: media_type_for(name).to_string() })
 }
 
@@ -162,6 +169,7 @@ pub fn run_pipeline(
     std::fs::create_dir_all(out_dir)
         .map_err(|e| PipelineError::Write { path: out_dir.to_path_buf(), source: e.into() })?;
     progress.check()?;
+    let syncer = Syncer::start();
 
     let _span = tracing::info_span!("pipeline", input = %input.display()).entered();
     let load_progress = progress.stage("load", 0.0, 0.1);
@@ -202,7 +210,7 @@ pub fn run_pipeline(
         let lo = 0.2 + share * i as f64;
         let p = progress.stage(name, lo, lo + share);
         let _stage_span = tracing::info_span!("stage", name).entered();
-        let out = timed(&mut timings, name, || run_stage(stage, params, &mut products, out_dir, &p))?;
+        let out = timed(&mut timings, name, || run_stage(stage, params, &mut products, out_dir, &syncer, &p))?;
         if let Some(t) = timings.last_mut() {
             t.seconds = (t.seconds - out.write_seconds).max(0.0);
         }
@@ -218,11 +226,16 @@ pub fn run_pipeline(
     let wp = progress.stage("write", 0.9, 1.0);
     let surface = &products.surface;
     let written = timed(&mut timings, "write", || -> Result<Vec<ArtifactInfo>, PipelineError> {
-        let msh = write_file(out_dir, "mesh.msh", |w| write_msh(w, &MshModel::from_surface(surface), &params.output))?;
+        let msh = write_file(out_dir, Some(&syncer), "mesh.msh", |w| {
+            write_msh(w, &MshModel::from_surface(surface), &params.output)
+        })?;
         wp.set(0.5);
-        let vtu = write_file(out_dir, "mesh.vtu", |w| write_surface_vtu(w, surface))?;
+        let vtu = write_file(out_dir, Some(&syncer), "mesh.vtu", |w| write_surface_vtu(w, surface))?;
         Ok(vec![msh, vtu])
     })?;
+    // Every artifact on disk before the report says the job succeeded.
+    timed(&mut timings, "sync", || syncer.finish())
+        .map_err(|(path, e)| PipelineError::Write { path, source: e.into() })?;
     let mut all = written;
     all.extend(artifacts);
     let report = PipelineReport {
@@ -235,7 +248,7 @@ pub fn run_pipeline(
         artifacts: all,
         total_seconds: start.elapsed().as_secs_f64(),
     };
-    write_file(out_dir, REPORT_NAME, |w| {
+    write_file(out_dir, None, REPORT_NAME, |w| {
         let mut text = serde_json::to_vec_pretty(&report).map_err(std::io::Error::other)?;
         text.push(b'\n');
         Ok(w.write_all(&text)?)

@@ -20,14 +20,17 @@ use crate::mesh::{Topology, TriMesh};
 use crate::progress::Progress;
 use crate::quads::{QuadsError, build_quads, write_quads_msh, write_quads_vtu};
 
+use super::durable::Syncer;
 use super::error::PipelineError;
 use super::params::{PipelineParams, StageName};
 use super::report::StageReport;
 use super::run::{Products, StageOutput};
 
-/// Write `out_dir/name` with `f` through a buffer and flush it.
+/// Write `out_dir/name` with `f` through a buffer, flush it and hand it to
+/// `syncer` (on disk before the pipeline returns).
 fn write_artifact(
     out_dir: &Path,
+    syncer: &Syncer,
     name: &str,
     f: impl FnOnce(&mut BufWriter<File>) -> Result<(), WriteError>,
 ) -> Result<String, PipelineError> {
@@ -36,7 +39,7 @@ fn write_artifact(
     let mut w = BufWriter::new(File::create(&path).map_err(|e| err(e.into()))?);
     f(&mut w).map_err(err)?;
     let file = w.into_inner().map_err(|e| err(e.into_error().into()))?;
-    file.sync_all().map_err(|e| err(e.into()))?;
+    syncer.sync(path.clone(), file).map_err(|e| err(e.into()))?;
     Ok(name.to_string())
 }
 
@@ -50,6 +53,7 @@ pub fn run_atlas(
     params: &PipelineParams,
     products: &mut Products,
     out_dir: &Path,
+    syncer: &Syncer,
     progress: &Progress,
 ) -> Result<StageOutput, PipelineError> {
     let atlas = build_atlas(&products.surface, &params.atlas, progress).map_err(|e| match e {
@@ -62,11 +66,11 @@ pub fn run_atlas(
     // The MSH file (with the parametrizations) takes as long as both VTU
     // files together: write it beside them on the pool.
     let (msh, (vtu, uv)) = rayon::join(
-        || write_artifact(out_dir, "atlas.msh", |w| write_atlas_msh_as(&atlas, w, &params.output)),
+        || write_artifact(out_dir, syncer, "atlas.msh", |w| write_atlas_msh_as(&atlas, w, &params.output)),
         || {
             rayon::join(
-                || write_artifact(out_dir, "atlas.vtu", |w| write_atlas_vtu(&atlas, w)),
-                || write_artifact(out_dir, "atlas_uv.vtu", |w| write_atlas_uv_vtu(&atlas, w)),
+                || write_artifact(out_dir, syncer, "atlas.vtu", |w| write_atlas_vtu(&atlas, w)),
+                || write_artifact(out_dir, syncer, "atlas_uv.vtu", |w| write_atlas_uv_vtu(&atlas, w)),
             )
         },
     );
@@ -88,6 +92,7 @@ pub fn run_crossfield(
     params: &PipelineParams,
     products: &mut Products,
     out_dir: &Path,
+    syncer: &Syncer,
     progress: &Progress,
 ) -> Result<StageOutput, PipelineError> {
     let topo = Topology::new(&products.surface);
@@ -103,9 +108,11 @@ pub fn run_crossfield(
     progress.check()?;
     let write_start = std::time::Instant::now();
     let artifacts = vec![
-        write_artifact(out_dir, "crossfield.vtu", |w| write_crossfield_vtu(&field, surface, w))?,
-        write_artifact(out_dir, "singularities.json", |w| Ok(write_singularities_json(&field, w)?))?,
-        write_artifact(out_dir, "crossfield.msh", |w| write_crossfield_msh_as(&field, surface, w, &params.output))?,
+        write_artifact(out_dir, syncer, "crossfield.vtu", |w| write_crossfield_vtu(&field, surface, w))?,
+        write_artifact(out_dir, syncer, "singularities.json", |w| Ok(write_singularities_json(&field, w)?))?,
+        write_artifact(out_dir, syncer, "crossfield.msh", |w| {
+            write_crossfield_msh_as(&field, surface, w, &params.output)
+        })?,
     ];
     let write_seconds = write_start.elapsed().as_secs_f64();
     let report = StageReport::Crossfield(Box::new(field.report.clone()));
@@ -121,6 +128,7 @@ pub fn run_frames(
     params: &PipelineParams,
     products: &mut Products,
     out_dir: &Path,
+    syncer: &Syncer,
     progress: &Progress,
 ) -> Result<StageOutput, PipelineError> {
     let field = compute_frame_field(&products.surface, products.volume.as_ref(), &params.frames, progress).map_err(
@@ -136,8 +144,8 @@ pub fn run_frames(
     progress.check()?;
     let write_start = std::time::Instant::now();
     let artifacts = vec![
-        write_artifact(out_dir, "frames.vtu", |w| write_frames_vtu(&field, w))?,
-        write_artifact(out_dir, "frames_singular.vtu", |w| write_singular_edges_vtu(&field, w))?,
+        write_artifact(out_dir, syncer, "frames.vtu", |w| write_frames_vtu(&field, w))?,
+        write_artifact(out_dir, syncer, "frames_singular.vtu", |w| write_singular_edges_vtu(&field, w))?,
     ];
     let write_seconds = write_start.elapsed().as_secs_f64();
     let report = StageReport::Frames(Box::new(field.report));
@@ -166,6 +174,7 @@ pub fn run_quads(
     params: &PipelineParams,
     products: &mut Products,
     out_dir: &Path,
+    syncer: &Syncer,
     progress: &Progress,
 ) -> Result<StageOutput, PipelineError> {
     let missing = |what: &str| {
@@ -177,8 +186,8 @@ pub fn run_quads(
     progress.check()?;
     let write_start = std::time::Instant::now();
     let artifacts = vec![
-        write_artifact(out_dir, "quads.msh", |w| write_quads_msh(&result.mesh, &result.model, w, &params.output))?,
-        write_artifact(out_dir, "quads.vtu", |w| write_quads_vtu(&result.mesh, &result.quality, w))?,
+        write_artifact(out_dir, syncer, "quads.msh", |w| write_quads_msh(&result.mesh, &result.model, w, &params.output))?,
+        write_artifact(out_dir, syncer, "quads.vtu", |w| write_quads_vtu(&result.mesh, &result.quality, w))?,
     ];
     let write_seconds = write_start.elapsed().as_secs_f64();
     Ok(StageOutput { report: StageReport::Quads(Box::new(result.report)), artifacts, write_seconds })

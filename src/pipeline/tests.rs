@@ -38,7 +38,7 @@ fn no_stage_run_writes_mesh_vtu_and_report() {
     assert_eq!(report.input.name, "sphere.obj");
     assert_eq!(report.input.format, "obj");
     let steps: Vec<&str> = report.timings.iter().map(|t| t.step.as_str()).collect();
-    assert_eq!(steps, ["load", "repair", "write"]);
+    assert_eq!(steps, ["load", "repair", "write", "sync"]);
     assert!(report.timings.iter().all(|t| t.seconds >= 0.0));
     let names: Vec<&str> = report.artifacts.iter().map(|a| a.name.as_str()).collect();
     assert_eq!(names, ["mesh.msh", "mesh.vtu"]);
