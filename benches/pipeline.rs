@@ -33,6 +33,7 @@
 //! report (`meshatlas run --json`), so a new stage shows up by itself.
 //! Memory is each child's peak RSS (`VmHWM` / `ru_maxrss`).
 
+#[path = "pipeline/quads.rs"]
 mod quads;
 
 use std::collections::BTreeMap;

@@ -186,7 +186,9 @@ pub fn run_quads(
     progress.check()?;
     let write_start = std::time::Instant::now();
     let artifacts = vec![
-        write_artifact(out_dir, syncer, "quads.msh", |w| write_quads_msh(&result.mesh, &result.model, w, &params.output))?,
+        write_artifact(out_dir, syncer, "quads.msh", |w| {
+            write_quads_msh(&result.mesh, &result.model, w, &params.output)
+        })?,
         write_artifact(out_dir, syncer, "quads.vtu", |w| write_quads_vtu(&result.mesh, &result.quality, w))?,
     ];
     let write_seconds = write_start.elapsed().as_secs_f64();

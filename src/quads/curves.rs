@@ -226,6 +226,11 @@ fn distribute(n: usize, lengths: &[f64], mins: &[usize]) -> Vec<usize> {
     counts
 }
 
+/// One feature curve cut into pieces: the vertex index of each piece end,
+/// the length of each piece, its minimum segment count, and the arc length
+/// at each vertex of the curve.
+type CurvePieces = (Vec<usize>, Vec<f64>, Vec<usize>, Vec<f64>);
+
 /// Discretize the feature curves of `model` and the seams of `atlas` at
 /// `size` (see the module documentation).
 ///
@@ -265,7 +270,7 @@ pub fn discretize_boundaries(
 
     // Pieces and segment counts of the feature curves, then parity.
     let curves = &model.features.curves;
-    let mut pieces: Vec<(Vec<usize>, Vec<f64>, Vec<usize>, Vec<f64>)> = Vec::with_capacity(curves.len());
+    let mut pieces: Vec<CurvePieces> = Vec::with_capacity(curves.len());
     let mut parity_curves = Vec::with_capacity(curves.len());
     for (c, curve) in curves.iter().enumerate() {
         let verts = &curve.vertices;
