@@ -4,8 +4,7 @@
 //! # File layout
 //! `<VTKFile type="UnstructuredGrid" version="1.0" byte_order="LittleEndian"
 //! header_type="UInt64|UInt32">` with one `<Piece>` holding `<PointData>`,
-//! `<CellData>`, `<Points>` (Float64 × 3, or Float32 × 3 when every
-//! coordinate is exactly an `f32`, e.g. from binary STL) and `<Cells>` (`connectivity`,
+//! `<CellData>`, `<Points>` (Float64 × 3) and `<Cells>` (`connectivity`,
 //! `offsets` = end of each cell in `connectivity`, `types`). Connectivity and
 //! offsets are `Int32` when every index fits, `Int64` otherwise.
 //! Cell types: vertex 1, line 3, triangle 5, quad 9, tetra 10, biquadratic
@@ -224,21 +223,6 @@ impl<'a> DataArray<'a> {
         Self::f64(name, 3, flat)
     }
 
-    /// A `Float32` array rounded from `f64` values, for data whose precision
-    /// is far below `f32`'s (estimated curvatures, unit directions, ratios):
-    /// half the bytes of [`DataArray::f64`].
-    pub fn f32_rounded(name: impl Into<String>, n_components: usize, values: &[f64]) -> Self {
-        let v: Vec<f32> = values.iter().map(|&x| x as f32).collect();
-        Self { name: name.into(), n_components, values: DataValues::Float32(v.into()) }
-    }
-
-    /// A `Float32` array of 3-vectors rounded from `f64` (see
-    /// [`DataArray::f32_rounded`]).
-    pub fn vectors_f32(name: impl Into<String>, values: &[Vec3]) -> Self {
-        let flat: Vec<f32> = values.iter().flat_map(|v| [v.x as f32, v.y as f32, v.z as f32]).collect();
-        Self { name: name.into(), n_components: 3, values: DataValues::Float32(flat.into()) }
-    }
-
     /// An `Int32` scalar array.
     pub fn i32(name: impl Into<String>, values: impl Into<Cow<'a, [i32]>>) -> Self {
         Self { name: name.into(), n_components: 1, values: DataValues::Int32(values.into()) }
@@ -333,13 +317,9 @@ pub fn write_vtu(w: impl Write, mesh: &VtuMesh<'_>, opts: &VtuOptions) -> Result
     mesh.validate()?;
     let n_conn: usize = mesh.cells.iter().map(|b| b.indices().len()).sum();
     let wide = mesh.points.len() > i32::MAX as usize || n_conn > i32::MAX as usize;
-    let points_f32 = points_are_f32(mesh.points);
     if opts.header_type == VtuHeaderType::UInt32 && opts.encoding != VtuEncoding::Ascii {
-        let sources = [
-            Source::Points(mesh.points, points_f32),
-            Source::Connectivity(&mesh.cells, wide),
-            Source::Offsets(&mesh.cells, wide),
-        ];
+        let sources =
+            [Source::Points(mesh.points), Source::Connectivity(&mesh.cells, wide), Source::Offsets(&mesh.cells, wide)];
         let data = mesh.point_data.iter().chain(&mesh.cell_data).map(|a| Source::Values(&a.values));
         if let Some(n) = sources.into_iter().chain(data).map(|s| s.n_bytes()).find(|&n| n > u32::MAX as usize) {
             return Err(WriteError::TooLarge {
@@ -357,8 +337,7 @@ pub fn write_vtu(w: impl Write, mesh: &VtuMesh<'_>, opts: &VtuOptions) -> Result
             items.push((tag, Source::Values(&a.values), attrs(&a.name, a.values.vtk_name(), a.n_components)));
         }
     }
-    let point_type = if points_f32 { "Float32" } else { "Float64" };
-    items.push(("Points", Source::Points(mesh.points, points_f32), attrs("Points", point_type, 3)));
+    items.push(("Points", Source::Points(mesh.points), attrs("Points", "Float64", 3)));
     items.push(("Cells", Source::Connectivity(&mesh.cells, wide), attrs("connectivity", int, 1)));
     items.push(("Cells", Source::Offsets(&mesh.cells, wide), attrs("offsets", int, 1)));
     items.push(("Cells", Source::Types(&mesh.cells), attrs("types", "UInt8", 1)));
@@ -395,17 +374,6 @@ pub fn write_vtu(w: impl Write, mesh: &VtuMesh<'_>, opts: &VtuOptions) -> Result
     xml.appended()?;
     xml.text("</VTKFile>\n");
     xml.finish()
-}
-
-/// True when every coordinate is exactly representable as an `f32` (always
-/// so for a mesh read from binary STL, whose welded positions are the file's
-/// own `f32` values): the points are then stored as Float32, half the bytes
-/// and the same values for every reader. Points computed in `f64` (a tet
-/// mesh's interior nodes, OBJ or PLY doubles, coordinates far from the
-/// origin) keep Float64, so no precision is ever lost.
-fn points_are_f32(points: &[Vec3]) -> bool {
-    use rayon::prelude::*;
-    points.par_iter().all(|p| p.iter().all(|&c| f64::from(c as f32) == c))
 }
 
 /// Bytes an array takes in the raw appended block: its header and data,
@@ -500,9 +468,8 @@ fn attrs(name: &str, ty: &str, n_components: usize) -> String {
 
 /// One array's values, produced on the fly (no full copy of big arrays).
 enum Source<'a> {
-    /// Point coordinates as Float64, or as Float32 when `true` (only when
-    /// every coordinate is exactly an `f32`, see [`points_are_f32`]).
-    Points(&'a [Vec3], bool),
+    /// Point coordinates as Float64.
+    Points(&'a [Vec3]),
     /// Concatenated cell indices; `true` = Int64.
     Connectivity(&'a [CellBlock<'a>], bool),
     /// End offset of each cell; `true` = Int64.
@@ -524,7 +491,7 @@ impl Source<'_> {
     /// Size in bytes of the binary data.
     fn n_bytes(&self) -> usize {
         match self {
-            Self::Points(p, single) => (if *single { 12 } else { 24 }) * p.len(),
+            Self::Points(p) => 24 * p.len(),
             Self::Connectivity(c, wide) => {
                 c.iter().map(|b| b.indices().len()).sum::<usize>() * if *wide { 8 } else { 4 }
             }
@@ -545,14 +512,9 @@ impl Source<'_> {
     /// and the value. Stops at the first error.
     fn for_each<E>(&self, mut f: impl FnMut(&[u8], Scalar) -> Result<(), E>) -> Result<(), E> {
         match self {
-            Self::Points(p, false) => {
+            Self::Points(p) => {
                 for x in p.iter().flat_map(|v| [v.x, v.y, v.z]) {
                     f(&x.to_le_bytes(), Scalar::F(x))?;
-                }
-            }
-            Self::Points(p, true) => {
-                for x in p.iter().flat_map(|v| [v.x, v.y, v.z]) {
-                    f(&(x as f32).to_le_bytes(), Scalar::F(x))?;
                 }
             }
             Self::Connectivity(cells, wide) => {
@@ -592,7 +554,7 @@ impl Source<'_> {
 
     /// Float32 values are written as text from their `f32` shortest form.
     fn is_f32(&self) -> bool {
-        matches!(self, Self::Values(DataValues::Float32(_)) | Self::Points(_, true))
+        matches!(self, Self::Values(DataValues::Float32(_)))
     }
 }
 
