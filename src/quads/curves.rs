@@ -17,6 +17,7 @@ use super::error::QuadsError;
 use super::model::QuadModel;
 use super::parity::{ParityCurve, ParityStats, fix_parity};
 use super::patch_chart::surface_position;
+use super::size_map::SizeMap;
 use super::surface_mesh::{CurveEdge, ModelEntity, SurfacePoint, SurfaceVertices};
 use crate::atlas::Atlas;
 use crate::geom::angle_between;
@@ -64,13 +65,17 @@ pub struct BoundaryMesh {
     pub parity: ParityStats,
 }
 
-/// Arc length at every vertex of the chain `verts`.
-fn arc_lengths(surface: &TriMesh, verts: &[VertexId]) -> Vec<f64> {
+/// Arc length at every vertex of the chain `verts`, measured in the size
+/// map (`∫ size / h(s) ds`), so equal steps are equal numbers of quad
+/// edges at the local size.
+fn arc_lengths(surface: &TriMesh, sizes: &SizeMap, size: f64, verts: &[VertexId]) -> Vec<f64> {
+    let h = |v: VertexId| sizes.size_per_vertex.get(v.idx()).copied().unwrap_or(size);
     let mut s = Vec::with_capacity(verts.len());
     let mut acc = 0.0;
     s.push(0.0);
     for w in verts.windows(2) {
-        acc += (surface.position(w[1]) - surface.position(w[0])).norm();
+        let local = 0.5 * (h(w[0]) + h(w[1]));
+        acc += (surface.position(w[1]) - surface.position(w[0])).norm() * size / local;
         s.push(acc);
     }
     s
@@ -243,6 +248,7 @@ pub fn discretize_boundaries(
     atlas: &Atlas,
     model: &QuadModel,
     size: f64,
+    sizes: &SizeMap,
 ) -> Result<BoundaryMesh, QuadsError> {
     let n_surface = surface.n_vertices();
     let mut atlas_edge = HashMap::new();
@@ -274,7 +280,7 @@ pub fn discretize_boundaries(
     let mut parity_curves = Vec::with_capacity(curves.len());
     for (c, curve) in curves.iter().enumerate() {
         let verts = &curve.vertices;
-        let s = arc_lengths(surface, verts);
+        let s = arc_lengths(surface, sizes, size, verts);
         let ends = piece_ends(surface, atlas, verts);
         let lengths: Vec<f64> = ends.windows(2).map(|w| s[w[1]] - s[w[0]]).collect();
         let mut mins = Vec::with_capacity(lengths.len());
@@ -359,7 +365,7 @@ pub fn discretize_boundaries(
             .edge_between(verts[0], verts[1])
             .ok_or_else(|| b.error(ac, format!("seam {ac} is not on surface edges")))?;
         let face = model.face_per_triangle[topo.edge_faces(e0)[0].idx()];
-        let s = arc_lengths(surface, verts);
+        let s = arc_lengths(surface, sizes, size, verts);
         let len = s[s.len() - 1];
         let n = ((len / size).round() as usize).max(atlas_min[ac]);
         for v in [verts[0], verts[verts.len() - 1]] {

@@ -12,6 +12,7 @@
 use std::collections::{HashMap, VecDeque};
 
 use super::patch_chart::PatchChart;
+use super::size_map::SizeMap;
 use crate::crossfield::Crossfield;
 use crate::geom::{Vec2, Vec3};
 use crate::mesh::TriMesh;
@@ -75,7 +76,7 @@ struct Front<'a> {
     chart: &'a PatchChart<'a>,
     surface: &'a TriMesh,
     field: &'a Crossfield,
-    size: f64,
+    sizes: &'a SizeMap,
     grid: Grid,
     placed: Vec<Placed>,
     boundary: Vec<[Vec3; 2]>,
@@ -88,6 +89,11 @@ impl Front<'_> {
         let n = self.surface.face_normal(f);
         let t1 = self.field.cross_per_face.get(f.idx()).copied().unwrap_or_else(Vec3::zeros);
         [t1, n.cross(&t1), n]
+    }
+
+    /// The target size at `x` on local triangle `t` (the size map).
+    fn size_at(&self, t: u32, x: &Vec3) -> f64 {
+        self.sizes.at_position(self.surface, self.chart.source_face(t), x)
     }
 
     fn add(&mut self, x: Vec3, frame: Option<[Vec3; 3]>) {
@@ -111,12 +117,12 @@ impl Front<'_> {
 
     /// True when a point at `x` keeps its distance to every placed point and
     /// to the boundary.
-    fn is_free(&self, x: &Vec3) -> bool {
-        let h = EXCLUSION * self.size;
+    fn is_free(&self, x: &Vec3, local: f64) -> bool {
+        let h = EXCLUSION * local;
         for q in self.grid.neighbours(&self.grid.points, x) {
             let q = &self.placed[q as usize];
             let d = x - q.x;
-            if d.norm() >= self.size {
+            if d.norm() >= local {
                 continue;
             }
             let inside = match &q.frame {
@@ -127,7 +133,7 @@ impl Front<'_> {
                 return false;
             }
         }
-        let clearance = BOUNDARY_CLEARANCE * self.size;
+        let clearance = BOUNDARY_CLEARANCE * local;
         !self.grid.neighbours(&self.grid.segments, x).any(|s| {
             let [a, b] = &self.boundary[s as usize];
             segment_distance(x, a, b) < clearance
@@ -137,7 +143,8 @@ impl Front<'_> {
     /// The candidate one size from `p` along the 3D direction `dir`, if it
     /// lies in the patch.
     fn candidate(&self, p: &ChartPoint, x: &Vec3, dir: &Vec3) -> Option<(ChartPoint, Vec3)> {
-        let duv = self.chart.uv_step(p.tri, &(dir * self.size))?;
+        let length = self.size_at(p.tri, x);
+        let duv = self.chart.uv_step(p.tri, &(dir * length))?;
         let mut scale = 1.0;
         let mut out = None;
         for _ in 0..2 {
@@ -146,10 +153,10 @@ impl Front<'_> {
             let y = self.chart.position(tri, &bary);
             let step = (y - x).norm();
             out = Some((ChartPoint { uv, tri, bary }, y));
-            if step.is_nan() || step <= 1e-12 * self.size {
+            if step.is_nan() || step <= 1e-12 * length {
                 return None;
             }
-            scale *= self.size / step;
+            scale *= length / step;
         }
         out
     }
@@ -168,18 +175,19 @@ pub fn insert_points(
     chart: &PatchChart,
     surface: &TriMesh,
     field: &Crossfield,
-    size: f64,
+    sizes: &SizeMap,
     boundary: &[ChartPoint],
     segments: &[[usize; 2]],
     singular: &[ChartPoint],
     progress: &Progress,
 ) -> Result<Vec<ChartPoint>, Cancelled> {
+    let (size, largest) = sizes.range();
     let mut front = Front {
         chart,
         surface,
         field,
-        size,
-        grid: Grid { cell: size, points: HashMap::new(), segments: HashMap::new() },
+        sizes,
+        grid: Grid { cell: largest, points: HashMap::new(), segments: HashMap::new() },
         placed: Vec::new(),
         boundary: Vec::new(),
     };
@@ -204,7 +212,7 @@ pub fn insert_points(
                 continue;
             }
             let Some((c, y)) = front.candidate(&p, &x, &dir) else { continue };
-            if front.is_free(&y) {
+            if front.is_free(&y, front.size_at(c.tri, &y)) {
                 front.add(y, Some(front.frame(c.tri)));
                 out.push(c);
                 queue.push_back((c, y));

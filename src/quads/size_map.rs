@@ -60,6 +60,23 @@ impl SizeMap {
         (0..3).map(|i| p.bary[i] * self.size_per_vertex[t[i].idx()]).sum()
     }
 
+    /// The size at the point `x` of surface triangle `face` (barycentric
+    /// coordinates of its projection on the triangle's plane, clamped).
+    pub fn at_position(&self, surface: &TriMesh, face: FaceId, x: &Vec3) -> f64 {
+        let [a, b, c] = surface.corners(face);
+        let (e1, e2, d) = (b - a, c - a, x - a);
+        let (d11, d12, d22) = (e1.dot(&e1), e1.dot(&e2), e2.dot(&e2));
+        let det = d11 * d22 - d12 * d12;
+        if !(det > 0.0) {
+            let t = surface.triangles[face.idx()];
+            return (0..3).map(|i| self.size_per_vertex[t[i].idx()]).sum::<f64>() / 3.0;
+        }
+        let (r1, r2) = (d.dot(&e1), d.dot(&e2));
+        let l1 = ((d22 * r1 - d12 * r2) / det).clamp(0.0, 1.0);
+        let l2 = ((d11 * r2 - d12 * r1) / det).clamp(0.0, 1.0 - l1);
+        self.at(surface, &SurfacePoint { face, bary: [1.0 - l1 - l2, l1, l2] })
+    }
+
     /// Smallest and largest size.
     pub fn range(&self) -> (f64, f64) {
         self.size_per_vertex.iter().fold((f64::INFINITY, 0.0f64), |(lo, hi), &h| (lo.min(h), hi.max(h)))

@@ -28,6 +28,7 @@ use super::insertion::{ChartPoint, insert_points};
 use super::model::QuadModel;
 use super::parity::ParityStats;
 use super::patch_chart::{PatchChart, surface_position};
+use super::size_map::{SizeMap, conformal_size_map};
 use super::surface_mesh::{ModelEntity, SurfacePoint, SurfaceTriangulation};
 use crate::atlas::{Atlas, AtlasPatch};
 use crate::crossfield::Crossfield;
@@ -100,7 +101,8 @@ pub fn surface_triangulation(
     if !(size > 0.0 && size.is_finite()) {
         return Err(QuadsError::InvalidOption { name: "size", reason: format!("must be positive, got {size}") });
     }
-    let boundary = discretize_boundaries(surface, topo, atlas, model, size)?;
+    let sizes = conformal_size_map(surface, topo, field, size)?;
+    let boundary = discretize_boundaries(surface, topo, atlas, model, size, &sizes)?;
     progress.check()?;
     progress.set(0.1);
     let outs: Vec<Result<PatchOut, QuadsError>> = atlas
@@ -109,7 +111,7 @@ pub fn surface_triangulation(
         .enumerate()
         .map(|(i, patch)| {
             progress.check()?;
-            triangulate_patch(surface, atlas, field, model, &boundary, i, patch, size, progress)
+            triangulate_patch(surface, atlas, field, model, &boundary, i, patch, &sizes, progress)
         })
         .collect();
     progress.check()?;
@@ -141,7 +143,7 @@ fn triangulate_patch(
     boundary: &BoundaryMesh,
     index: usize,
     patch: &AtlasPatch,
-    size: f64,
+    sizes: &SizeMap,
     progress: &Progress,
 ) -> Result<PatchOut, QuadsError> {
     let fail = |reason: String| QuadsError::Triangulation { patch: index, reason };
@@ -198,7 +200,7 @@ fn triangulate_patch(
             indices.push((s.index * f64::from(field.symmetry)).round() as i32);
         }
     }
-    let inner = insert_points(&chart, surface, field, size, &points, &segments, &singular, progress)?;
+    let inner = insert_points(&chart, surface, field, sizes, &points, &segments, &singular, progress)?;
     let nb = points.len();
     let n_singular = singular.len();
     points.extend(singular);
