@@ -497,21 +497,4 @@ mod tests {
         tri.triangles[0] = [0, 1, 9];
         assert!(matches!(recombine(tri, &Progress::none()), Err(QuadsError::CheckFailed { .. })));
     }
-
-    /// Speed on ~50k and ~200k triangles (numbers in docs/decisions.md):
-    /// `cargo test --release --lib quads::recombine -- --ignored --nocapture`.
-    #[test]
-    #[ignore]
-    fn measure_speed() {
-        for (name, tri) in [
-            ("jittered grid 160²", delaunay(&jittered_grid(160, 5))),
-            ("jittered grid 320²", delaunay(&jittered_grid(320, 5))),
-            ("random 25k", random_even(25_000, 5)),
-            ("random 100k", random_even(100_000, 5)),
-        ] {
-            let (mesh, stats) = run(&tri);
-            assert_valid(&mesh);
-            println!("{name}: {stats:?}");
-        }
-    }
 }

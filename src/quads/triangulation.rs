@@ -626,32 +626,4 @@ mod tests {
             assert_eq!(a.singular_vertices, other.singular_vertices);
         }
     }
-
-    /// Measures the step on the shared Gmsh inputs (run by hand:
-    /// `cargo test --lib quads::triangulation -- --ignored --nocapture`);
-    /// the numbers are in `docs/decisions.md`.
-    #[test]
-    #[ignore = "measurement on the shared data set, slow in debug"]
-    fn measure_on_the_gmsh_inputs() {
-        for name in ["disk_3k", "sphere_3k", "torus_20k"] {
-            let path = std::path::PathBuf::from(format!("/work/shared/data/gmsh/{name}.stl"));
-            let loaded = crate::io::load_path(&path, None, &crate::io::LoadOptions::default()).expect("load");
-            let s = setup(loaded.surface);
-            let size = s.mesh.mean_edge_length();
-            let t = Instant::now();
-            let (tri, stats) = run(&s, size);
-            let seconds = t.elapsed().as_secs_f64();
-            check(&s, &tri);
-            println!(
-                "{name}: {} input triangles, {} patches, size {size:.4}: {} vertices ({} boundary), {} triangles, {} singular, {} bumps, {seconds:.3} s",
-                s.mesh.n_faces(),
-                s.atlas.patches.len(),
-                stats.n_vertices,
-                stats.n_boundary_vertices,
-                stats.n_triangles,
-                stats.n_singular_vertices,
-                stats.parity.bumps.len()
-            );
-        }
-    }
 }
