@@ -148,7 +148,7 @@ fn unit_square_with_a_constant_cross_is_a_regular_grid() {
 }
 
 #[test]
-#[ignore = "issue 13 open: the frontal first version gives 75 interior irregular vertices on disk_3k, after a subdivision fallback (target 4)"]
+#[ignore = "issue 13 open: with cavity patterns 10 interior irregular vertices on disk_3k, after a subdivision fallback (target 4)"]
 fn unit_disk_has_exactly_four_valence_3_vertices_at_the_singularities() {
     let mesh = shared("gmsh/disk_3k.stl");
     let (result, field) = quads_of(&mesh, &QuadsOptions::default());
@@ -182,7 +182,7 @@ fn cube_corners_are_the_only_irregular_vertices() {
 }
 
 #[test]
-#[ignore = "issue 13 open: seams meshed as curves, 198 irregular vertices on sphere_3k (target ≤ 10)"]
+#[ignore = "issue 13 open: with cavity patterns 26 irregular vertices on sphere_3k (target ≤ 10)"]
 fn sphere_has_at_most_10_irregular_vertices_with_one_at_each_singularity() {
     let mesh = shared("gmsh/sphere_3k.stl");
     let (result, field) = quads_of(&mesh, &QuadsOptions::default());
@@ -201,7 +201,7 @@ fn sphere_has_at_most_10_irregular_vertices_with_one_at_each_singularity() {
 }
 
 #[test]
-#[ignore = "issue 13 open: seams meshed as curves, 899 irregular vertices on torus_20k (target ≤ 8)"]
+#[ignore = "issue 13 open: with cavity patterns 188 irregular vertices on torus_20k (target ≤ 8)"]
 fn torus_has_at_most_8_irregular_vertices() {
     let mesh = shared("gmsh/torus_20k.stl");
     let (result, field) = quads_of(&mesh, &QuadsOptions::default());

@@ -292,42 +292,52 @@ impl<'m> Work<'m> {
 
     /// Drops the dead quads and vertices and renumbers every index list.
     fn compact(self) {
-        let mesh = self.mesh;
-        let mut new_index = vec![u32::MAX; mesh.vertices.len()];
-        let mut next = 0u32;
-        for (v, slot) in new_index.iter_mut().enumerate() {
-            if self.alive_vertex[v] {
-                *slot = next;
-                next += 1;
-            }
-        }
-        let keep = |v: usize| self.alive_vertex[v];
-        let verts = &mut mesh.vertices;
-        retain_alive(&mut verts.positions, &self.alive_vertex);
-        retain_alive(&mut verts.on_surface, &self.alive_vertex);
-        retain_alive(&mut verts.entity, &self.alive_vertex);
-        let map = |v: u32| new_index[v as usize];
-        let (mut quads, mut faces) = (Vec::new(), Vec::new());
-        for (q, quad) in mesh.quads.iter().enumerate() {
-            if self.alive_quad[q] {
-                quads.push(quad.map(map));
-                faces.push(mesh.model_face_per_quad[q]);
-            }
-        }
-        mesh.quads = quads;
-        mesh.model_face_per_quad = faces;
-        for (_, e) in &mut mesh.curve_edges {
-            *e = e.map(map);
-        }
-        for (v, _) in &mut mesh.singular_vertices {
-            *v = map(*v);
-        }
-        mesh.seam_vertices.retain(|&v| keep(v as usize));
-        for v in &mut mesh.seam_vertices {
-            *v = map(*v);
-        }
-        mesh.high_order_nodes = None;
+        compact(self.mesh, &self.alive_vertex, &self.alive_quad);
     }
+}
+
+/// Drops the quads and vertices of `mesh` whose flag is not set in
+/// `alive_quad` / `alive_vertex` (quads and vertices appended after the
+/// flags were made are kept) and renumbers every index list; the dead
+/// vertices leave the singular and seam lists. Any order-2 nodes are
+/// dropped (the steps that edit topology run before they are added).
+pub(super) fn compact(mesh: &mut QuadMesh, alive_vertex: &[bool], alive_quad: &[bool]) {
+    let vertex_alive = |v: usize| alive_vertex.get(v).copied().unwrap_or(true);
+    let mut new_index = vec![u32::MAX; mesh.vertices.len()];
+    let mut next = 0u32;
+    for (v, slot) in new_index.iter_mut().enumerate() {
+        if vertex_alive(v) {
+            *slot = next;
+            next += 1;
+        }
+    }
+    let flags: Vec<bool> = (0..mesh.vertices.len()).map(vertex_alive).collect();
+    let verts = &mut mesh.vertices;
+    retain_alive(&mut verts.positions, &flags);
+    retain_alive(&mut verts.on_surface, &flags);
+    retain_alive(&mut verts.entity, &flags);
+    let map = |v: u32| new_index[v as usize];
+    let (mut quads, mut faces) = (Vec::new(), Vec::new());
+    for (q, quad) in mesh.quads.iter().enumerate() {
+        if alive_quad.get(q).copied().unwrap_or(true) {
+            quads.push(quad.map(map));
+            faces.push(mesh.model_face_per_quad[q]);
+        }
+    }
+    mesh.quads = quads;
+    mesh.model_face_per_quad = faces;
+    for (_, e) in &mut mesh.curve_edges {
+        *e = e.map(map);
+    }
+    mesh.singular_vertices.retain(|&(v, _)| flags[v as usize]);
+    for (v, _) in &mut mesh.singular_vertices {
+        *v = map(*v);
+    }
+    mesh.seam_vertices.retain(|&v| flags[v as usize]);
+    for v in &mut mesh.seam_vertices {
+        *v = map(*v);
+    }
+    mesh.high_order_nodes = None;
 }
 
 /// Keeps the items of `items` whose flag in `alive` is set.
@@ -366,7 +376,7 @@ fn ideal_quad_counts(mesh: &QuadMesh, quads_of: &[Vec<u32>]) -> Vec<i64> {
 }
 
 #[cfg(test)]
-mod tests {
+pub(crate) mod tests {
     use super::*;
     use crate::geom::Vec3;
     use crate::mesh::FaceId;
@@ -378,7 +388,7 @@ mod tests {
 
     /// Every edge in one quad (on a curve) or two (inside), and no quad
     /// repeating a vertex.
-    fn assert_conforming(mesh: &QuadMesh) {
+    pub(crate) fn assert_conforming(mesh: &QuadMesh) {
         let mut count: HashMap<[u32; 2], usize> = HashMap::new();
         for q in &mesh.quads {
             let mut s = *q;
@@ -398,7 +408,7 @@ mod tests {
         assert_eq!(used.len(), mesh.vertices.len(), "every vertex is used");
     }
 
-    fn square_grid(input: &Input, n: usize) -> QuadMesh {
+    pub(crate) fn square_grid(input: &Input, n: usize) -> QuadMesh {
         grid_mesh(input, n, n, false, |i, j| Vec3::new(i as f64 / n as f64, j as f64 / n as f64, 0.0))
     }
 
@@ -420,7 +430,7 @@ mod tests {
     /// 3-3 diamond `[down, right, up, left]`: the vertex moves up by 0.3 of
     /// a cell, a new one sits 0.3 below, and the left and right neighbours
     /// end up in 5 quads (the inverse of a diamond collapse).
-    fn insert_diamond(mesh: &mut QuadMesh, n: usize, i: usize, j: usize) -> (u32, u32) {
+    pub(crate) fn insert_diamond(mesh: &mut QuadMesh, n: usize, i: usize, j: usize) -> (u32, u32) {
         let id = |i: usize, j: usize| (j * (n + 1) + i) as u32;
         let (up, e_r, e_t, e_l, e_b) = (id(i, j), id(i + 1, j), id(i, j + 1), id(i - 1, j), id(i, j - 1));
         let (c_tr, c_tl, c_bl, c_br) = (id(i + 1, j + 1), id(i - 1, j + 1), id(i - 1, j - 1), id(i + 1, j - 1));

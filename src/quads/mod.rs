@@ -15,14 +15,16 @@
 //!    the patches' triangulations joined into one [`SurfaceTriangulation`].
 //! 4. [`recombine`]: triangles paired into quads by alignment and shape,
 //!    completed to a perfect matching, midpoint subdivision as last resort.
-//! 5. [`cleanup`] and [`smooth`]: valence-2 vertices and 3-3 diamonds
-//!    removed; smoothing that never lowers a neighbourhood's worst scaled
+//! 5. [`cleanup`], [`cavity`] and [`smooth`]: valence-2 vertices and 3-3
+//!    diamonds removed; cavities around irregular vertices replaced by
+//!    patterns with fewer of them; smoothing that never lowers a neighbourhood's worst scaled
 //!    Jacobian, every vertex projected back onto the input ([`projection`]).
 //! 6. [`order2`]: optional 9-node quadrangles, new nodes on the input.
 //! 7. [`quality`] and [`check`]: scaled Jacobians, valences, the valence
 //!    identity and conformity, asserted on every output; [`report`].
 //! 8. [`output`]: `quads.msh` and `quads.vtu`.
 
+pub mod cavity;
 pub mod check;
 pub mod cleanup;
 pub mod curves;
@@ -123,6 +125,7 @@ pub fn build_quads(
     progress.check()?;
     let projector = projection::SurfaceProjector::new(surface, &topo, &model);
     let cleanup = cleanup::clean_up(&mut mesh, &projector);
+    let cavities = cavity::remesh_cavities(&mut mesh, &projector);
     let smoothing = smooth::smooth(&mut mesh, &projector, opts.smoothing_iterations, &progress.sub(0.6, 0.95))?;
     let t = Instant::now();
     if opts.order == 2 {
@@ -144,6 +147,7 @@ pub fn build_quads(
         triangulation,
         recombination,
         cleanup,
+        cavities,
         smoothing,
         high_order_seconds,
         check_seconds,

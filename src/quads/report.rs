@@ -16,6 +16,7 @@ use std::collections::{BTreeMap, HashSet};
 
 use serde::Serialize;
 
+use super::cavity::CavityStats;
 use super::cleanup::CleanupStats;
 use super::quality::{QuadQuality, sample_stats};
 use super::recombine::RecombineStats;
@@ -35,6 +36,8 @@ pub struct StepSeconds {
     pub recombination: f64,
     /// Cleanup (valence-2 vertices, 3-3 diamonds).
     pub cleanup: f64,
+    /// Cavity remeshing with patterns.
+    pub cavities: f64,
     /// Smoothing and projection.
     pub smoothing: f64,
     /// Order-2 nodes (0 for order 1).
@@ -111,6 +114,8 @@ pub struct QuadsReport {
     pub recombination: RecombineStats,
     /// The cleanup step's report.
     pub cleanup: CleanupStats,
+    /// The cavity remeshing step's report.
+    pub cavities: CavityStats,
     /// The smoothing step's report.
     pub smoothing: SmoothStats,
     /// Wall seconds per step.
@@ -135,6 +140,8 @@ pub struct ReportInputs<'a> {
     pub recombination: RecombineStats,
     /// Cleanup.
     pub cleanup: CleanupStats,
+    /// Cavity remeshing.
+    pub cavities: CavityStats,
     /// Smoothing.
     pub smoothing: SmoothStats,
     /// Wall seconds of the order-2 nodes (0 for order 1).
@@ -162,6 +169,7 @@ impl QuadsReport {
             triangulation: inputs.triangulation.seconds,
             recombination: inputs.recombination.seconds,
             cleanup: inputs.cleanup.seconds,
+            cavities: inputs.cavities.seconds,
             smoothing: inputs.smoothing.seconds,
             high_order: inputs.high_order_seconds,
             check: inputs.check_seconds,
@@ -198,6 +206,7 @@ impl QuadsReport {
             triangulation: inputs.triangulation,
             recombination: inputs.recombination,
             cleanup: inputs.cleanup,
+            cavities: inputs.cavities,
             smoothing: inputs.smoothing,
             seconds,
         }
@@ -230,6 +239,7 @@ mod tests {
             triangulation: TriangulationStats { seconds: 1.5, ..Default::default() },
             recombination: RecombineStats::default(),
             cleanup: CleanupStats::default(),
+            cavities: CavityStats::default(),
             smoothing: SmoothStats::default(),
             high_order_seconds: 0.0,
             check_seconds: 0.25,

@@ -58,6 +58,13 @@ impl SurfaceVertices {
         self.positions.is_empty()
     }
 
+    /// Drops the vertices from index `len` on.
+    pub fn truncate(&mut self, len: usize) {
+        self.positions.truncate(len);
+        self.on_surface.truncate(len);
+        self.entity.truncate(len);
+    }
+
     /// Appends a vertex and returns its index.
     pub fn push(&mut self, position: Vec3, on_surface: SurfacePoint, entity: ModelEntity) -> u32 {
         self.positions.push(position);

@@ -1,0 +1,740 @@
+//! Step 5b of the quads stage: irregular vertices removed by remeshing quad
+//! cavities with patterns (Gmsh's quasi-structured mesher,
+//! `qmtQuadCavityRemeshing`; research `quad-meshing.md` §1.2; Takayama et
+//! al. 2014 for the patterns).
+//!
+//! A *cavity* is a set of quads of one model face forming a topological
+//! disk. Each vertex `v` on its boundary loop lies in `k(v)` of its quads;
+//! the cavity is *convex* when every `k(v) ≤ 2`, and its *corners* are the
+//! vertices with `k(v) = 1`. For a quad disk with `n` corners,
+//! `Σ_inside (4 − valence) = 4 − n` (the disk's index theorem), so a convex
+//! cavity with
+//! - 4 corners and equal opposite sides is a regular grid (nothing
+//!   irregular inside);
+//! - 3 or 5 corners is `n` grids around one vertex of valence `n`, when its
+//!   side lengths `l_i` split as `l_i = s_{i−1} + s_{i+1}` with every spoke
+//!   `s_j ≥ 1` (the spoke from that vertex to side `j`).
+//!
+//! Replacing a cavity by its pattern keeps every boundary vertex's quad
+//! count, so the mesh outside is untouched, and leaves at most one
+//! irregular vertex inside. From each irregular vertex a cavity is grown
+//! ring by ring (made convex after each ring by taking in every boundary
+//! vertex with `k ≥ 3`) until a pattern applies with fewer irregular
+//! vertices inside than before; the new vertices are placed by transfinite
+//! interpolation of the boundary, relaxed towards their neighbours'
+//! centroid on the model face, and the pattern is kept only when its worst
+//! scaled Jacobian is at least `min(MIN_SCALED_JACOBIAN, the cavity's old
+//! worst)`. A vertex placed at a crossfield singularity is only replaced
+//! by the centre of a pattern of its own valence, which stays where the
+//! singularity was. Passes repeat until none applies; everything runs in
+//! vertex order, so the result does not depend on the thread count.
+
+use std::collections::{BTreeMap, BTreeSet, HashMap, HashSet};
+use std::time::Instant;
+
+use serde::Serialize;
+
+use super::cleanup::compact;
+use super::projection::SurfaceProjector;
+use super::smooth::quad_scaled_jacobian;
+use super::surface_mesh::{ModelEntity, QuadMesh};
+use crate::geom::Vec3;
+
+/// Largest cavity, in quads, a seed may grow to.
+const MAX_CAVITY_QUADS: usize = 400;
+
+/// Rings grown around a seed before giving up on it.
+const MAX_RINGS: usize = 10;
+
+/// Passes over all irregular vertices.
+const MAX_PASSES: usize = 6;
+
+/// Relaxation sweeps of a new pattern's inside vertices.
+const RELAX_SWEEPS: usize = 30;
+
+/// A new pattern must reach this worst scaled Jacobian (or the cavity's
+/// old worst, when that was lower).
+const MIN_SCALED_JACOBIAN: f64 = 0.3;
+
+/// What cavity remeshing did (for the report).
+#[derive(Debug, Clone, Default, Serialize)]
+pub struct CavityStats {
+    /// Cavities replaced by a pattern.
+    pub remeshed: u64,
+    /// The same, per number of pattern corners (3, 4 or 5).
+    pub remeshed_by_corners: BTreeMap<usize, u64>,
+    /// Patterns that applied topologically but were refused for their shape.
+    pub rejected_shape: u64,
+    /// Vertices inside model faces whose quad count is not their ideal
+    /// (4, or `4 − index` at a singularity), before.
+    pub irregular_before: u64,
+    /// The same after.
+    pub irregular_after: u64,
+    /// Passes over the mesh until nothing applied.
+    pub passes: usize,
+    /// Wall seconds of the step.
+    pub seconds: f64,
+}
+
+/// Replaces cavities of `mesh` by patterns with fewer irregular vertices
+/// (to a fixpoint or [`MAX_PASSES`]), then compacts it.
+pub fn remesh_cavities(mesh: &mut QuadMesh, projector: &SurfaceProjector) -> CavityStats {
+    let t = Instant::now();
+    let mut work = Cavities::new(mesh, projector);
+    let mut stats = CavityStats { irregular_before: work.n_irregular(), ..CavityStats::default() };
+    for _ in 0..MAX_PASSES {
+        stats.passes += 1;
+        let mut changed = false;
+        let mut v = 0;
+        while v < work.quads_of.len() as u32 {
+            if work.is_irregular_seed(v) {
+                changed |= work.grow_and_remesh(v, &mut stats);
+            }
+            v += 1;
+        }
+        if !changed {
+            break;
+        }
+    }
+    stats.irregular_after = work.n_irregular();
+    let Cavities { mesh, alive_vertex, alive_quad, .. } = work;
+    compact(mesh, &alive_vertex, &alive_quad);
+    stats.seconds = t.elapsed().as_secs_f64();
+    stats
+}
+
+/// The mesh being edited, with incidences kept up to date.
+struct Cavities<'m, 'p> {
+    mesh: &'m mut QuadMesh,
+    projector: &'p SurfaceProjector<'p>,
+    alive_quad: Vec<bool>,
+    alive_vertex: Vec<bool>,
+    /// Alive quads around each vertex.
+    quads_of: Vec<Vec<u32>>,
+    /// Index (quarter turns) of each vertex placed at a singularity.
+    singular: Vec<Option<i32>>,
+    /// Edges on feature curves, as sorted vertex pairs.
+    curve_edges: HashSet<[u32; 2]>,
+}
+
+/// A convex disk cavity and the pattern that replaces it.
+struct Plan {
+    /// Model face of the cavity.
+    face: u32,
+    /// Its quads.
+    quads: Vec<u32>,
+    /// Vertices inside it (removed).
+    inside: Vec<u32>,
+    /// Its sides, corner to corner in boundary order (each includes both corners).
+    sides: Vec<Vec<u32>>,
+    /// The singular vertex inside, if any, with its index.
+    singular: Option<(u32, i32)>,
+}
+
+/// The replacement of a cavity before it is applied: new vertices (ids
+/// from `base` on) and quads over old and new vertices.
+struct Pattern {
+    base: u32,
+    positions: Vec<Vec3>,
+    quads: Vec<[u32; 4]>,
+    /// New vertices that do not move while relaxing (a singular centre).
+    pinned: Vec<u32>,
+    /// The pattern's centre vertex (3 and 5 corners).
+    centre: Option<u32>,
+}
+
+impl<'m, 'p> Cavities<'m, 'p> {
+    fn new(mesh: &'m mut QuadMesh, projector: &'p SurfaceProjector<'p>) -> Self {
+        let n = mesh.vertices.len();
+        let mut quads_of = vec![Vec::new(); n];
+        for (qi, q) in mesh.quads.iter().enumerate() {
+            for &v in q {
+                quads_of[v as usize].push(qi as u32);
+            }
+        }
+        let mut singular = vec![None; n];
+        for &(v, index) in &mesh.singular_vertices {
+            if let Some(s) = singular.get_mut(v as usize) {
+                *s = Some(index);
+            }
+        }
+        let curve_edges = mesh.curve_edges.iter().map(|(_, [a, b])| [*a.min(b), *a.max(b)]).collect();
+        let alive_quad = vec![true; mesh.quads.len()];
+        Self { mesh, projector, alive_quad, alive_vertex: vec![true; n], quads_of, singular, curve_edges }
+    }
+
+    /// Ideal quad count of face vertex `v`: 4, or `4 − index` at a singularity.
+    fn ideal(&self, v: u32) -> usize {
+        (4 - self.singular[v as usize].unwrap_or(0)).max(1) as usize
+    }
+
+    /// The model face `v` is inside, if it is a face vertex.
+    fn face_of(&self, v: u32) -> Option<u32> {
+        match self.mesh.vertices.entity[v as usize] {
+            ModelEntity::Face(f) => Some(f),
+            _ => None,
+        }
+    }
+
+    /// True when `v` is an alive face vertex off its ideal quad count.
+    fn is_irregular_seed(&self, v: u32) -> bool {
+        let n = self.quads_of[v as usize].len();
+        self.alive_vertex[v as usize] && n > 0 && self.face_of(v).is_some() && n != self.ideal(v)
+    }
+
+    /// Face vertices off their ideal quad count.
+    fn n_irregular(&self) -> u64 {
+        (0..self.quads_of.len() as u32).filter(|&v| self.is_irregular_seed(v)).count() as u64
+    }
+
+    /// Grows cavities around `seed` ring by ring and replaces the first one
+    /// whose pattern has fewer irregular vertices and a good shape.
+    fn grow_and_remesh(&mut self, seed: u32, stats: &mut CavityStats) -> bool {
+        let Some(face) = self.face_of(seed) else { return false };
+        let mut cavity: BTreeSet<u32> = self.quads_of[seed as usize].iter().copied().collect();
+        if cavity.iter().any(|&q| self.mesh.model_face_per_quad[q as usize] != face) {
+            return false;
+        }
+        for _ in 0..MAX_RINGS {
+            if !self.make_convex(&mut cavity, face) {
+                return false;
+            }
+            if let Some(plan) = self.plan(&cavity, face) {
+                if self.apply(&plan) {
+                    *stats.remeshed_by_corners.entry(plan.sides.len()).or_default() += 1;
+                    stats.remeshed += 1;
+                    return true;
+                }
+                stats.rejected_shape += 1;
+            }
+            if !self.add_ring(&mut cavity, face) {
+                return false;
+            }
+        }
+        false
+    }
+
+    /// Number of quads of `cavity` around each of its vertices.
+    fn counts(&self, cavity: &BTreeSet<u32>) -> BTreeMap<u32, usize> {
+        let mut k = BTreeMap::new();
+        for &q in cavity {
+            for v in self.mesh.quads[q as usize] {
+                *k.entry(v).or_default() += 1;
+            }
+        }
+        k
+    }
+
+    /// Takes into `cavity` every quad around a vertex that the cavity
+    /// surrounds on three or more quads but not all (a concave boundary
+    /// vertex), until there is none. False when that needs a quad of
+    /// another face, a vertex off the face, or more than
+    /// [`MAX_CAVITY_QUADS`].
+    fn make_convex(&self, cavity: &mut BTreeSet<u32>, face: u32) -> bool {
+        loop {
+            let concave: Vec<u32> = self
+                .counts(cavity)
+                .into_iter()
+                .filter(|&(v, k)| k >= 3 && (k < self.quads_of[v as usize].len() || self.face_of(v) != Some(face)))
+                .map(|(v, _)| v)
+                .collect();
+            if concave.is_empty() {
+                return true;
+            }
+            for v in concave {
+                if !self.take_all_quads_of(cavity, v, face) {
+                    return false;
+                }
+            }
+            if cavity.len() > MAX_CAVITY_QUADS {
+                return false;
+            }
+        }
+    }
+
+    /// Adds every quad around `v` to `cavity`; false when `v` is not a
+    /// vertex of `face` or one of its quads is in another face.
+    fn take_all_quads_of(&self, cavity: &mut BTreeSet<u32>, v: u32, face: u32) -> bool {
+        if self.face_of(v) != Some(face) {
+            return false;
+        }
+        let quads = &self.quads_of[v as usize];
+        if quads.iter().any(|&q| self.mesh.model_face_per_quad[q as usize] != face) {
+            return false;
+        }
+        cavity.extend(quads.iter().copied());
+        true
+    }
+
+    /// Adds the quads of `face` around every boundary vertex of `cavity`
+    /// (one ring); false when nothing was added or it grew too large.
+    fn add_ring(&self, cavity: &mut BTreeSet<u32>, face: u32) -> bool {
+        let before = cavity.len();
+        let ring: Vec<u32> = self
+            .counts(cavity)
+            .into_iter()
+            .filter(|&(v, k)| k < self.quads_of[v as usize].len())
+            .flat_map(|(v, _)| self.quads_of[v as usize].iter().copied())
+            .filter(|&q| self.mesh.model_face_per_quad[q as usize] == face)
+            .collect();
+        cavity.extend(ring);
+        cavity.len() > before && cavity.len() <= MAX_CAVITY_QUADS
+    }
+
+    /// The alive quad other than `q` with the edge `a b`.
+    fn across(&self, q: u32, a: u32, b: u32) -> Option<u32> {
+        self.quads_of[a as usize].iter().copied().find(|&o| o != q && self.mesh.quads[o as usize].contains(&b))
+    }
+
+    /// The boundary loop of `cavity` with the cavity on its left (quad
+    /// order), or `None` unless the cavity is a disk with one simple loop.
+    fn boundary_loop(&self, cavity: &BTreeSet<u32>) -> Option<Vec<u32>> {
+        let mut next: HashMap<u32, u32> = HashMap::new();
+        let mut first = None;
+        for &q in cavity {
+            let quad = self.mesh.quads[q as usize];
+            for k in 0..4 {
+                let (a, b) = (quad[k], quad[(k + 1) % 4]);
+                let inner = self.across(q, a, b).is_some_and(|o| cavity.contains(&o));
+                if inner {
+                    if self.curve_edges.contains(&[a.min(b), a.max(b)]) {
+                        return None;
+                    }
+                    continue;
+                }
+                if next.insert(a, b).is_some() {
+                    return None;
+                }
+                first.get_or_insert(a);
+            }
+        }
+        let start = first?;
+        let mut lp = vec![start];
+        let mut v = next[&start];
+        while v != start {
+            if lp.len() > next.len() {
+                return None;
+            }
+            lp.push(v);
+            v = *next.get(&v)?;
+        }
+        let n_vertices = self.counts(cavity).len() as i64;
+        let (f, nb) = (cavity.len() as i64, next.len() as i64);
+        let disk = lp.len() == next.len() && n_vertices - (4 * f + nb) / 2 + f == 1;
+        disk.then_some(lp)
+    }
+
+    /// The pattern plan for convex `cavity`, when it is a disk whose
+    /// pattern applies and has fewer irregular vertices inside.
+    fn plan(&self, cavity: &BTreeSet<u32>, face: u32) -> Option<Plan> {
+        let lp = self.boundary_loop(cavity)?;
+        let k = self.counts(cavity);
+        let on_loop: HashSet<u32> = lp.iter().copied().collect();
+        let inside: Vec<u32> = k.keys().copied().filter(|v| !on_loop.contains(v)).collect();
+        if inside.iter().any(|&v| self.face_of(v) != Some(face)) {
+            return None;
+        }
+        let corners: Vec<usize> = (0..lp.len()).filter(|&i| k[&lp[i]] == 1).collect();
+        let n = corners.len();
+        if !(3..=5).contains(&n) {
+            return None;
+        }
+        let singular: Vec<(u32, i32)> =
+            inside.iter().filter_map(|&v| self.singular[v as usize].map(|i| (v, i))).collect();
+        let centre_index = 4 - n as i32;
+        match singular.as_slice() {
+            [] => {}
+            [(_, i)] if *i == centre_index => {}
+            _ => return None,
+        }
+        let old = inside.iter().filter(|&&v| self.quads_of[v as usize].len() != 4).count();
+        let new = usize::from(n != 4);
+        if new >= old {
+            return None;
+        }
+        let sides: Vec<Vec<u32>> = (0..n)
+            .map(|c| {
+                let (from, to) = (corners[c], corners[(c + 1) % n]);
+                let len = (to + lp.len() - from) % lp.len();
+                let len = if len == 0 { lp.len() } else { len };
+                (0..=len).map(|i| lp[(from + i) % lp.len()]).collect()
+            })
+            .collect();
+        let lengths: Vec<usize> = sides.iter().map(|s| s.len() - 1).collect();
+        let fits =
+            if n == 4 { lengths[0] == lengths[2] && lengths[1] == lengths[3] } else { spokes(&lengths).is_some() };
+        fits.then(|| Plan {
+            face,
+            quads: cavity.iter().copied().collect(),
+            inside,
+            sides,
+            singular: singular.first().copied(),
+        })
+    }
+
+    /// Builds the pattern of `plan`, relaxes it and, when its shape is good
+    /// enough, replaces the cavity by it. Returns whether it did.
+    fn apply(&mut self, plan: &Plan) -> bool {
+        let base = self.mesh.vertices.len() as u32;
+        let mut pattern = Pattern { base, positions: Vec::new(), quads: Vec::new(), pinned: Vec::new(), centre: None };
+        if plan.sides.len() == 4 {
+            let sides: [Vec<u32>; 4] = std::array::from_fn(|i| plan.sides[i].clone());
+            pattern.fill_grid(&self.mesh.vertices.positions, sides);
+        } else {
+            let centre_at = plan.singular.map(|(v, _)| self.mesh.vertices.positions[v as usize]);
+            pattern.fill_star(&self.mesh.vertices.positions, &plan.sides, centre_at);
+        }
+        let old_min = plan
+            .quads
+            .iter()
+            .map(|&q| quad_scaled_jacobian(&self.mesh.vertices, self.projector.surface, &self.mesh.quads[q as usize]))
+            .fold(f64::INFINITY, f64::min);
+        if !self.place(&pattern, plan.face) {
+            self.mesh.vertices.truncate(base as usize);
+            return false;
+        }
+        self.relax(&pattern, plan.face);
+        let new_min = pattern
+            .quads
+            .iter()
+            .map(|q| quad_scaled_jacobian(&self.mesh.vertices, self.projector.surface, q))
+            .fold(f64::INFINITY, f64::min);
+        if !(new_min > 0.0 && new_min >= old_min.min(MIN_SCALED_JACOBIAN)) {
+            self.mesh.vertices.truncate(base as usize);
+            return false;
+        }
+        self.commit(plan, &pattern);
+        true
+    }
+
+    /// Appends the pattern's new vertices, projected onto model face `face`.
+    fn place(&mut self, pattern: &Pattern, face: u32) -> bool {
+        for x in &pattern.positions {
+            let Some(p) = self.projector.project_to_face(face, x) else { return false };
+            self.mesh.vertices.push(p.position, p.on_surface, ModelEntity::Face(face));
+        }
+        true
+    }
+
+    /// Moves each new, unpinned vertex to the centroid of its edge
+    /// neighbours, projected onto the face, [`RELAX_SWEEPS`] times in order.
+    fn relax(&mut self, pattern: &Pattern, face: u32) {
+        let mut neighbours: BTreeMap<u32, BTreeSet<u32>> = BTreeMap::new();
+        for q in &pattern.quads {
+            for k in 0..4 {
+                let (a, b) = (q[k], q[(k + 1) % 4]);
+                neighbours.entry(a).or_default().insert(b);
+                neighbours.entry(b).or_default().insert(a);
+            }
+        }
+        for _ in 0..RELAX_SWEEPS {
+            for (&v, around) in &neighbours {
+                if v < pattern.base || pattern.pinned.contains(&v) {
+                    continue;
+                }
+                let p = &self.mesh.vertices.positions;
+                let mean = around.iter().fold(Vec3::zeros(), |acc, &w| acc + p[w as usize]) / around.len() as f64;
+                if let Some(proj) = self.projector.project_to_face(face, &mean) {
+                    self.mesh.vertices.positions[v as usize] = proj.position;
+                    self.mesh.vertices.on_surface[v as usize] = proj.on_surface;
+                }
+            }
+        }
+    }
+
+    /// Replaces the cavity of `plan` by `pattern` (whose vertices are
+    /// already appended) and updates the incidences.
+    fn commit(&mut self, plan: &Plan, pattern: &Pattern) {
+        let dead: HashSet<u32> = plan.quads.iter().copied().collect();
+        for &q in &plan.quads {
+            self.alive_quad[q as usize] = false;
+        }
+        for &v in &plan.inside {
+            self.alive_vertex[v as usize] = false;
+            self.quads_of[v as usize].clear();
+            self.singular[v as usize] = None;
+        }
+        for side in &plan.sides {
+            for &v in side {
+                self.quads_of[v as usize].retain(|q| !dead.contains(q));
+            }
+        }
+        let n_new = pattern.positions.len();
+        self.alive_vertex.extend(std::iter::repeat_n(true, n_new));
+        self.quads_of.extend(std::iter::repeat_n(Vec::new(), n_new));
+        self.singular.extend(std::iter::repeat_n(None, n_new));
+        for quad in &pattern.quads {
+            let q = self.mesh.quads.len() as u32;
+            self.mesh.quads.push(*quad);
+            self.mesh.model_face_per_quad.push(plan.face);
+            self.alive_quad.push(true);
+            for &v in quad {
+                self.quads_of[v as usize].push(q);
+            }
+        }
+        if let (Some((_, index)), Some(c)) = (plan.singular, pattern.centre) {
+            self.singular[c as usize] = Some(index);
+            self.mesh.singular_vertices.push((c, index));
+        }
+    }
+}
+
+impl Pattern {
+    /// A new vertex at `x`.
+    fn vertex(&mut self, x: Vec3) -> u32 {
+        self.positions.push(x);
+        self.base + self.positions.len() as u32 - 1
+    }
+
+    /// Position of `v`, old (`old`) or new.
+    fn position(&self, old: &[Vec3], v: u32) -> Vec3 {
+        if v < self.base { old[v as usize] } else { self.positions[(v - self.base) as usize] }
+    }
+
+    /// A structured grid inside four sides, `sides[k]` running from corner
+    /// `k` to corner `k + 1` (opposite sides of equal length), inside
+    /// vertices by transfinite (Coons) interpolation of the sides.
+    fn fill_grid(&mut self, old: &[Vec3], sides: [Vec<u32>; 4]) {
+        let (a, b) = (sides[0].len() - 1, sides[1].len() - 1);
+        let mut grid = vec![vec![u32::MAX; b + 1]; a + 1];
+        for i in 0..=a {
+            grid[i][0] = sides[0][i];
+            grid[a - i][b] = sides[2][i];
+        }
+        for j in 0..=b {
+            grid[a][j] = sides[1][j];
+            grid[0][b - j] = sides[3][j];
+        }
+        for i in 1..a {
+            for j in 1..b {
+                let (u, v) = (i as f64 / a as f64, j as f64 / b as f64);
+                let p = |i: usize, j: usize| self.position(old, grid[i][j]);
+                let x = p(i, 0) * (1.0 - v) + p(i, b) * v + p(0, j) * (1.0 - u) + p(a, j) * u
+                    - (p(0, 0) * ((1.0 - u) * (1.0 - v))
+                        + p(a, 0) * (u * (1.0 - v))
+                        + p(0, b) * ((1.0 - u) * v)
+                        + p(a, b) * (u * v));
+                grid[i][j] = self.vertex(x);
+            }
+        }
+        for i in 0..a {
+            for j in 0..b {
+                self.quads.push([grid[i][j], grid[i + 1][j], grid[i + 1][j + 1], grid[i][j + 1]]);
+            }
+        }
+    }
+
+    /// `n` grids (n = 3 or 5) around one centre vertex, with spoke `j` from
+    /// the centre to side `j`; the centre sits at `centre_at` (pinned) or
+    /// at the mean of the boundary.
+    fn fill_star(&mut self, old: &[Vec3], sides: &[Vec<u32>], centre_at: Option<Vec3>) {
+        let n = sides.len();
+        let lengths: Vec<usize> = sides.iter().map(|s| s.len() - 1).collect();
+        let Some(s) = spokes(&lengths) else { return };
+        let boundary: Vec<Vec3> = sides.iter().flat_map(|side| side[1..].iter().map(|&v| old[v as usize])).collect();
+        let mean = boundary.iter().fold(Vec3::zeros(), |acc, x| acc + x) / boundary.len() as f64;
+        let centre = self.vertex(centre_at.unwrap_or(mean));
+        self.centre = Some(centre);
+        if centre_at.is_some() {
+            self.pinned.push(centre);
+        }
+        let centre_x = self.position(old, centre);
+        let spokes: Vec<Vec<u32>> = (0..n)
+            .map(|j| {
+                let foot = sides[j][s[(j + n - 1) % n]];
+                let foot_x = old[foot as usize];
+                let mut spoke = vec![foot];
+                for t in 1..s[j] {
+                    let w = t as f64 / s[j] as f64;
+                    spoke.push(self.vertex(foot_x * (1.0 - w) + centre_x * w));
+                }
+                spoke.push(centre);
+                spoke
+            })
+            .collect();
+        for i in 0..n {
+            let prev = (i + n - 1) % n;
+            let along = sides[i][..=s[prev]].to_vec();
+            let inward = spokes[i].clone();
+            let outward: Vec<u32> = spokes[prev].iter().rev().copied().collect();
+            let back = sides[prev][s[(prev + n - 1) % n]..].to_vec();
+            self.fill_grid(old, [along, inward, outward, back]);
+        }
+    }
+}
+
+/// Spoke lengths `s` of an `n`-sided star pattern (`n` odd) with side
+/// lengths `l`: `l_i = s_{i−1} + s_{i+1}`, so `2 s_j = Σ_t (−1)^t
+/// l_{j+1+2t}`. `None` unless every spoke is a whole number ≥ 1.
+fn spokes(l: &[usize]) -> Option<Vec<usize>> {
+    let n = l.len();
+    if n.is_multiple_of(2) {
+        return None;
+    }
+    (0..n)
+        .map(|j| {
+            let twice: i64 = (0..n).map(|t| if t % 2 == 0 { 1 } else { -1 } * l[(j + 1 + 2 * t) % n] as i64).sum();
+            (twice >= 2 && twice % 2 == 0).then_some((twice / 2) as usize)
+        })
+        .collect()
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::mesh::fixtures;
+    use crate::quads::cleanup::tests::{assert_conforming, insert_diamond, square_grid};
+    use crate::quads::smooth::project_all;
+    use crate::quads::smooth::tests::Input;
+
+    /// Quads around each vertex of `quads`.
+    fn quad_counts(quads: &[[u32; 4]]) -> BTreeMap<u32, usize> {
+        let mut k = BTreeMap::new();
+        for q in quads {
+            for &v in q {
+                *k.entry(v).or_default() += 1;
+            }
+        }
+        k
+    }
+
+    #[test]
+    fn a_diamond_in_a_grid_is_remeshed_back_to_the_regular_grid() {
+        let n = 8;
+        let input = Input::new(fixtures::square(n));
+        let proj = input.projector();
+        let mut mesh = square_grid(&input, n);
+        project_all(&mut mesh, &proj);
+        insert_diamond(&mut mesh, n, 4, 4);
+        project_all(&mut mesh, &proj);
+        let stats = remesh_cavities(&mut mesh, &proj);
+        assert_eq!((stats.irregular_before, stats.irregular_after), (4, 0), "{stats:?}");
+        assert_eq!(stats.remeshed_by_corners.get(&4), Some(&1));
+        assert_conforming(&mesh);
+        // With 8 segments on each side and no irregular vertex, the only
+        // quad mesh of the square is the 8 × 8 grid.
+        assert_eq!((mesh.quads.len(), mesh.vertices.len()), (64, 81));
+        assert!(mesh.quads.iter().all(|q| quad_scaled_jacobian(&mesh.vertices, &input.surface, q) > 0.9));
+    }
+
+    #[test]
+    fn a_singular_vertex_stays_when_no_pattern_has_its_valence() {
+        let n = 8;
+        let input = Input::new(fixtures::square(n));
+        let proj = input.projector();
+        let mut mesh = square_grid(&input, n);
+        project_all(&mut mesh, &proj);
+        let (up, _) = insert_diamond(&mut mesh, n, 4, 4);
+        project_all(&mut mesh, &proj);
+        mesh.singular_vertices = vec![(up, 1)];
+        let before = mesh.quads.len();
+        let stats = remesh_cavities(&mut mesh, &proj);
+        // A 4-corner cavity has no place for the index +1 the vertex carries.
+        assert_eq!(stats.remeshed, 0, "{stats:?}");
+        assert_eq!(mesh.quads.len(), before);
+        assert_eq!(mesh.singular_vertices, vec![(up, 1)]);
+    }
+
+    /// The star pattern inside a polygon with `sides` segments per side
+    /// (corners on the unit circle): its quads and the boundary loop.
+    fn star(sides: &[usize]) -> (Pattern, Vec<Vec3>, Vec<Vec<u32>>) {
+        let n = sides.len();
+        let corner = |i: usize| {
+            let a = std::f64::consts::TAU * i as f64 / n as f64;
+            Vec3::new(a.cos(), a.sin(), 0.0)
+        };
+        let (mut old, mut side_ids) = (Vec::new(), Vec::new());
+        let total: usize = sides.iter().sum();
+        for (i, &l) in sides.iter().enumerate() {
+            let mut ids = Vec::new();
+            for t in 0..=l {
+                if t == l {
+                    ids.push(((old.len()) % total) as u32);
+                    continue;
+                }
+                ids.push(old.len() as u32);
+                let w = t as f64 / l as f64;
+                old.push(corner(i) * (1.0 - w) + corner(i + 1) * w);
+            }
+            side_ids.push(ids);
+        }
+        let mut pattern =
+            Pattern { base: total as u32, positions: Vec::new(), quads: Vec::new(), pinned: Vec::new(), centre: None };
+        pattern.fill_star(&old, &side_ids, None);
+        (pattern, old, side_ids)
+    }
+
+    #[test]
+    fn star_patterns_are_conforming_oriented_grids_around_one_vertex_of_valence_n() {
+        for sides in [vec![4, 4, 4], vec![3, 5, 4], vec![2; 5], vec![3, 4, 5, 4, 4]] {
+            let n = sides.len();
+            let s = spokes(&sides).unwrap();
+            let (pattern, old, side_ids) = star(&sides);
+            // Patch i is an s_{i−1} × s_i grid.
+            let expected: usize = (0..n).map(|i| s[(i + n - 1) % n] * s[i]).sum();
+            assert_eq!(pattern.quads.len(), expected, "{sides:?}");
+            let k = quad_counts(&pattern.quads);
+            let centre = pattern.centre.unwrap();
+            assert_eq!(k[&centre], n);
+            let corners: BTreeSet<u32> = side_ids.iter().map(|side| side[0]).collect();
+            let boundary: BTreeSet<u32> = side_ids.iter().flatten().copied().collect();
+            for (&v, &count) in &k {
+                let want = if v == centre {
+                    n
+                } else if corners.contains(&v) {
+                    1
+                } else if boundary.contains(&v) {
+                    2
+                } else {
+                    4
+                };
+                assert_eq!(count, want, "vertex {v} of {sides:?}");
+            }
+            // Every edge is used once in each direction inside, once along
+            // the boundary in its loop direction.
+            let mut directed: BTreeMap<(u32, u32), usize> = BTreeMap::new();
+            for q in &pattern.quads {
+                for i in 0..4 {
+                    *directed.entry((q[i], q[(i + 1) % 4])).or_default() += 1;
+                }
+            }
+            let loop_edges: BTreeSet<(u32, u32)> =
+                side_ids.iter().flat_map(|side| side.windows(2).map(|w| (w[0], w[1]))).collect();
+            for (&(a, b), &count) in &directed {
+                assert_eq!(count, 1, "{sides:?}: edge {a} → {b} used {count} times");
+                let inner = directed.contains_key(&(b, a));
+                assert!(inner != loop_edges.contains(&(a, b)), "{sides:?}: edge {a} → {b}");
+            }
+            assert!(loop_edges.iter().all(|e| directed.contains_key(e)));
+            // Counter-clockwise like the boundary loop.
+            for q in &pattern.quads {
+                let p: Vec<Vec3> = q.iter().map(|&v| pattern.position(&old, v)).collect();
+                let area: f64 = (0..4).map(|i| p[i].x * p[(i + 1) % 4].y - p[(i + 1) % 4].x * p[i].y).sum();
+                assert!(area > 0.0, "{sides:?}: quad {q:?} has area {area}");
+            }
+        }
+    }
+
+    #[test]
+    fn spokes_split_each_side_into_its_two_neighbours_spokes() {
+        // A triangle of sides 4, 4, 4: spokes 2 each.
+        assert_eq!(spokes(&[4, 4, 4]), Some(vec![2, 2, 2]));
+        // Sides 3, 5, 4: s0 = (5 + 4 − 3)/2 = 3, s1 = (4 + 3 − 5)/2 = 1, s2 = (3 + 5 − 4)/2 = 2.
+        let s = spokes(&[3, 5, 4]).unwrap();
+        assert_eq!(s, vec![3, 1, 2]);
+        for i in 0..3 {
+            assert_eq!([3, 5, 4][i], s[(i + 2) % 3] + s[(i + 1) % 3]);
+        }
+        // Odd perimeter or a side longer than the two others: no pattern.
+        assert_eq!(spokes(&[3, 4, 4]), None);
+        assert_eq!(spokes(&[6, 2, 2]), None);
+        // A pentagon of sides 2: spokes 1.
+        assert_eq!(spokes(&[2; 5]), Some(vec![1; 5]));
+        let l = [3, 4, 5, 4, 4];
+        let s = spokes(&l).unwrap();
+        for i in 0..5 {
+            assert_eq!(l[i], s[(i + 4) % 5] + s[(i + 1) % 5], "{s:?}");
+        }
+        assert_eq!(spokes(&[2; 4]), None);
+    }
+}
