@@ -7,8 +7,9 @@
 //!   +1/4 singularities), each near one of them.
 //! - Cube with its feature edges: the 8 corners are the only irregular
 //!   vertices, of valence 3.
-//! - Sphere: at most 10 irregular vertices, a valence-3 vertex near each of
-//!   the 8 square-antiprism singularities, none of valence ≥ 6.
+//! - Sphere: at most 10 irregular vertices, none of valence ≥ 6 (so at
+//!   least 8 of valence 3), one within a target size of each of the 8
+//!   square-antiprism singularities.
 //! - Torus (χ = 0, no singularity): at most 8 irregular vertices.
 //!
 //! Valences are counted here from the quads themselves (edges used by one
@@ -148,7 +149,6 @@ fn unit_square_with_a_constant_cross_is_a_regular_grid() {
 }
 
 #[test]
-#[ignore = "issue 13 open: with cavity patterns 10 interior irregular vertices on disk_3k, after a subdivision fallback (target 4)"]
 fn unit_disk_has_exactly_four_valence_3_vertices_at_the_singularities() {
     let mesh = shared("gmsh/disk_3k.stl");
     let (result, field) = quads_of(&mesh, &QuadsOptions::default());
@@ -182,16 +182,25 @@ fn cube_corners_are_the_only_irregular_vertices() {
 }
 
 #[test]
-#[ignore = "issue 13 open: with cavity patterns 26 irregular vertices on sphere_3k (target ≤ 10)"]
-fn sphere_has_at_most_10_irregular_vertices_with_one_at_each_singularity() {
+fn sphere_has_at_most_10_irregular_vertices_all_of_valence_3() {
     let mesh = shared("gmsh/sphere_3k.stl");
     let (result, field) = quads_of(&mesh, &QuadsOptions::default());
     assert_eq!(field.singularities.len(), 8);
-    let size = result.report.target_size;
-    let v = valences(&result);
-    let irregular = v.interior_irregular();
+    let irregular = valences(&result).interior_irregular();
     assert!(irregular.len() <= 10, "{} irregular vertices: {irregular:?}", irregular.len());
+    // 4χ = 8: with at most 10 irregular vertices and none of valence ≥ 6,
+    // at least 8 are of valence 3.
     assert!(irregular.iter().all(|(_, d)| *d < 6), "valence ≥ 6 in {irregular:?}");
+    assert!(irregular.iter().filter(|(_, d)| *d == 3).count() >= 8, "{irregular:?}");
+}
+
+#[test]
+#[ignore = "issue 13 open: the 8 valence-3 vertices of sphere_3k lie 0.3–2.7 target sizes from the crossfield's singularities (cavity centres relax away)"]
+fn sphere_has_a_valence_3_vertex_within_one_size_of_each_singularity() {
+    let mesh = shared("gmsh/sphere_3k.stl");
+    let (result, field) = quads_of(&mesh, &QuadsOptions::default());
+    let size = result.report.target_size;
+    let irregular = valences(&result).interior_irregular();
     for s in &field.singularities {
         let near = irregular
             .iter()
@@ -201,7 +210,7 @@ fn sphere_has_at_most_10_irregular_vertices_with_one_at_each_singularity() {
 }
 
 #[test]
-#[ignore = "issue 13 open: with cavity patterns 188 irregular vertices on torus_20k (target ≤ 8)"]
+#[ignore = "issue 13 open: with cavity patterns 30 irregular vertices on torus_20k (target ≤ 8; Gmsh does not finish)"]
 fn torus_has_at_most_8_irregular_vertices() {
     let mesh = shared("gmsh/torus_20k.stl");
     let (result, field) = quads_of(&mesh, &QuadsOptions::default());

@@ -25,8 +25,9 @@
 //! centroid on the model face, and the pattern is kept only when its worst
 //! scaled Jacobian is at least `min(MIN_SCALED_JACOBIAN, the cavity's old
 //! worst)`. A vertex placed at a crossfield singularity is only replaced
-//! by the centre of a pattern of its own valence, which stays where the
-//! singularity was. Passes repeat until none applies; everything runs in
+//! by the centre of a pattern of its own valence, which first stays where
+//! the singularity was and relaxes with the others only when that shape
+//! is refused (the spoke lengths fix where the centre fits best). Passes repeat until none applies; everything runs in
 //! vertex order, so the result does not depend on the thread count.
 
 use std::collections::{BTreeMap, BTreeSet, HashMap, HashSet};
@@ -41,16 +42,20 @@ use super::surface_mesh::{ModelEntity, QuadMesh};
 use crate::geom::Vec3;
 
 /// Largest cavity, in quads, a seed may grow to.
-const MAX_CAVITY_QUADS: usize = 400;
+const MAX_CAVITY_QUADS: usize = 2000;
 
 /// Rings grown around a seed before giving up on it.
-const MAX_RINGS: usize = 10;
+const MAX_RINGS: usize = 25;
 
 /// Passes over all irregular vertices.
 const MAX_PASSES: usize = 6;
 
-/// Relaxation sweeps of a new pattern's inside vertices.
-const RELAX_SWEEPS: usize = 30;
+/// Relaxation rounds of a new pattern's inside vertices, each a projection
+/// onto the face after [`SWEEPS_PER_ROUND`] centroid sweeps.
+const RELAX_ROUNDS: usize = 3;
+
+/// Centroid sweeps per relaxation round.
+const SWEEPS_PER_ROUND: usize = 10;
 
 /// A new pattern must reach this worst scaled Jacobian (or the cavity's
 /// old worst, when that was lower).
@@ -82,18 +87,21 @@ pub fn remesh_cavities(mesh: &mut QuadMesh, projector: &SurfaceProjector) -> Cav
     let t = Instant::now();
     let mut work = Cavities::new(mesh, projector);
     let mut stats = CavityStats { irregular_before: work.n_irregular(), ..CavityStats::default() };
-    for _ in 0..MAX_PASSES {
-        stats.passes += 1;
-        let mut changed = false;
-        let mut v = 0;
-        while v < work.quads_of.len() as u32 {
-            if work.is_irregular_seed(v) {
-                changed |= work.grow_and_remesh(v, &mut stats);
+    for centre_needs_singularity in [true, false] {
+        work.centre_needs_singularity = centre_needs_singularity;
+        for _ in 0..MAX_PASSES {
+            stats.passes += 1;
+            let mut changed = false;
+            let mut v = 0;
+            while v < work.quads_of.len() as u32 {
+                if work.is_irregular_seed(v) {
+                    changed |= work.grow_and_remesh(v, &mut stats);
+                }
+                v += 1;
             }
-            v += 1;
-        }
-        if !changed {
-            break;
+            if !changed {
+                break;
+            }
         }
     }
     stats.irregular_after = work.n_irregular();
@@ -115,6 +123,71 @@ struct Cavities<'m, 'p> {
     singular: Vec<Option<i32>>,
     /// Edges on feature curves, as sorted vertex pairs.
     curve_edges: HashSet<[u32; 2]>,
+    /// When set, a pattern with a centre (3 or 5 corners) must replace a
+    /// vertex placed at a singularity of the centre's index, grown from
+    /// that vertex (so the cavity is centred on it).
+    centre_needs_singularity: bool,
+    /// The vertex the current cavity grows from.
+    seed: u32,
+}
+
+/// A set of quads: its members in the order they joined, a flag per quad
+/// of the mesh for membership, and how many members each vertex is in.
+struct QuadSet {
+    list: Vec<u32>,
+    member: Vec<bool>,
+    /// Members around each vertex of the mesh.
+    count: Vec<u32>,
+    /// The vertices of the members, in the order they were first reached.
+    vertices: Vec<u32>,
+}
+
+impl QuadSet {
+    /// The empty set over a mesh of `n_quads` quads and `n_vertices` vertices.
+    fn new(n_quads: usize, n_vertices: usize) -> Self {
+        Self { list: Vec::new(), member: vec![false; n_quads], count: vec![0; n_vertices], vertices: Vec::new() }
+    }
+
+    /// Adds quad `q` with corners `quad` (no effect when it is already in).
+    fn insert(&mut self, q: u32, quad: [u32; 4]) {
+        if self.member[q as usize] {
+            return;
+        }
+        self.member[q as usize] = true;
+        self.list.push(q);
+        for v in quad {
+            if self.count[v as usize] == 0 {
+                self.vertices.push(v);
+            }
+            self.count[v as usize] += 1;
+        }
+    }
+
+    /// True when `q` is in the set.
+    fn contains(&self, q: u32) -> bool {
+        self.member[q as usize]
+    }
+
+    /// Number of quads in the set.
+    fn len(&self) -> usize {
+        self.list.len()
+    }
+
+    /// The members in the order they joined.
+    fn iter(&self) -> impl Iterator<Item = u32> + '_ {
+        self.list.iter().copied()
+    }
+
+    /// Members around vertex `v`.
+    fn count(&self, v: u32) -> usize {
+        self.count[v as usize] as usize
+    }
+
+    /// `(vertex, members around it)` for every vertex of the members, in
+    /// the order they were first reached.
+    fn counts(&self) -> impl Iterator<Item = (u32, usize)> + '_ {
+        self.vertices.iter().map(|&v| (v, self.count(v)))
+    }
 }
 
 /// A convex disk cavity and the pattern that replaces it.
@@ -160,7 +233,17 @@ impl<'m, 'p> Cavities<'m, 'p> {
         }
         let curve_edges = mesh.curve_edges.iter().map(|(_, [a, b])| [*a.min(b), *a.max(b)]).collect();
         let alive_quad = vec![true; mesh.quads.len()];
-        Self { mesh, projector, alive_quad, alive_vertex: vec![true; n], quads_of, singular, curve_edges }
+        Self {
+            mesh,
+            projector,
+            alive_quad,
+            alive_vertex: vec![true; n],
+            quads_of,
+            singular,
+            curve_edges,
+            centre_needs_singularity: true,
+            seed: 0,
+        }
     }
 
     /// Ideal quad count of face vertex `v`: 4, or `4 − index` at a singularity.
@@ -191,8 +274,12 @@ impl<'m, 'p> Cavities<'m, 'p> {
     /// whose pattern has fewer irregular vertices and a good shape.
     fn grow_and_remesh(&mut self, seed: u32, stats: &mut CavityStats) -> bool {
         let Some(face) = self.face_of(seed) else { return false };
-        let mut cavity: BTreeSet<u32> = self.quads_of[seed as usize].iter().copied().collect();
-        if cavity.iter().any(|&q| self.mesh.model_face_per_quad[q as usize] != face) {
+        self.seed = seed;
+        let mut cavity = QuadSet::new(self.mesh.quads.len(), self.mesh.vertices.len());
+        for &q in &self.quads_of[seed as usize] {
+            cavity.insert(q, self.mesh.quads[q as usize]);
+        }
+        if cavity.iter().any(|q| self.mesh.model_face_per_quad[q as usize] != face) {
             return false;
         }
         for _ in 0..MAX_RINGS {
@@ -214,27 +301,15 @@ impl<'m, 'p> Cavities<'m, 'p> {
         false
     }
 
-    /// Number of quads of `cavity` around each of its vertices.
-    fn counts(&self, cavity: &BTreeSet<u32>) -> BTreeMap<u32, usize> {
-        let mut k = BTreeMap::new();
-        for &q in cavity {
-            for v in self.mesh.quads[q as usize] {
-                *k.entry(v).or_default() += 1;
-            }
-        }
-        k
-    }
-
     /// Takes into `cavity` every quad around a vertex that the cavity
     /// surrounds on three or more quads but not all (a concave boundary
     /// vertex), until there is none. False when that needs a quad of
     /// another face, a vertex off the face, or more than
     /// [`MAX_CAVITY_QUADS`].
-    fn make_convex(&self, cavity: &mut BTreeSet<u32>, face: u32) -> bool {
+    fn make_convex(&self, cavity: &mut QuadSet, face: u32) -> bool {
         loop {
-            let concave: Vec<u32> = self
-                .counts(cavity)
-                .into_iter()
+            let concave: Vec<u32> = cavity
+                .counts()
                 .filter(|&(v, k)| k >= 3 && (k < self.quads_of[v as usize].len() || self.face_of(v) != Some(face)))
                 .map(|(v, _)| v)
                 .collect();
@@ -254,7 +329,7 @@ impl<'m, 'p> Cavities<'m, 'p> {
 
     /// Adds every quad around `v` to `cavity`; false when `v` is not a
     /// vertex of `face` or one of its quads is in another face.
-    fn take_all_quads_of(&self, cavity: &mut BTreeSet<u32>, v: u32, face: u32) -> bool {
+    fn take_all_quads_of(&self, cavity: &mut QuadSet, v: u32, face: u32) -> bool {
         if self.face_of(v) != Some(face) {
             return false;
         }
@@ -262,22 +337,25 @@ impl<'m, 'p> Cavities<'m, 'p> {
         if quads.iter().any(|&q| self.mesh.model_face_per_quad[q as usize] != face) {
             return false;
         }
-        cavity.extend(quads.iter().copied());
+        for &q in quads {
+            cavity.insert(q, self.mesh.quads[q as usize]);
+        }
         true
     }
 
     /// Adds the quads of `face` around every boundary vertex of `cavity`
     /// (one ring); false when nothing was added or it grew too large.
-    fn add_ring(&self, cavity: &mut BTreeSet<u32>, face: u32) -> bool {
+    fn add_ring(&self, cavity: &mut QuadSet, face: u32) -> bool {
         let before = cavity.len();
-        let ring: Vec<u32> = self
-            .counts(cavity)
-            .into_iter()
+        let ring: Vec<u32> = cavity
+            .counts()
             .filter(|&(v, k)| k < self.quads_of[v as usize].len())
             .flat_map(|(v, _)| self.quads_of[v as usize].iter().copied())
             .filter(|&q| self.mesh.model_face_per_quad[q as usize] == face)
             .collect();
-        cavity.extend(ring);
+        for q in ring {
+            cavity.insert(q, self.mesh.quads[q as usize]);
+        }
         cavity.len() > before && cavity.len() <= MAX_CAVITY_QUADS
     }
 
@@ -288,14 +366,14 @@ impl<'m, 'p> Cavities<'m, 'p> {
 
     /// The boundary loop of `cavity` with the cavity on its left (quad
     /// order), or `None` unless the cavity is a disk with one simple loop.
-    fn boundary_loop(&self, cavity: &BTreeSet<u32>) -> Option<Vec<u32>> {
+    fn boundary_loop(&self, cavity: &QuadSet) -> Option<Vec<u32>> {
         let mut next: HashMap<u32, u32> = HashMap::new();
         let mut first = None;
-        for &q in cavity {
+        for q in cavity.iter() {
             let quad = self.mesh.quads[q as usize];
             for k in 0..4 {
                 let (a, b) = (quad[k], quad[(k + 1) % 4]);
-                let inner = self.across(q, a, b).is_some_and(|o| cavity.contains(&o));
+                let inner = self.across(q, a, b).is_some_and(|o| cavity.contains(o));
                 if inner {
                     if self.curve_edges.contains(&[a.min(b), a.max(b)]) {
                         return None;
@@ -318,7 +396,7 @@ impl<'m, 'p> Cavities<'m, 'p> {
             lp.push(v);
             v = *next.get(&v)?;
         }
-        let n_vertices = self.counts(cavity).len() as i64;
+        let n_vertices = cavity.vertices.len() as i64;
         let (f, nb) = (cavity.len() as i64, next.len() as i64);
         let disk = lp.len() == next.len() && n_vertices - (4 * f + nb) / 2 + f == 1;
         disk.then_some(lp)
@@ -326,15 +404,14 @@ impl<'m, 'p> Cavities<'m, 'p> {
 
     /// The pattern plan for convex `cavity`, when it is a disk whose
     /// pattern applies and has fewer irregular vertices inside.
-    fn plan(&self, cavity: &BTreeSet<u32>, face: u32) -> Option<Plan> {
+    fn plan(&self, cavity: &QuadSet, face: u32) -> Option<Plan> {
         let lp = self.boundary_loop(cavity)?;
-        let k = self.counts(cavity);
         let on_loop: HashSet<u32> = lp.iter().copied().collect();
-        let inside: Vec<u32> = k.keys().copied().filter(|v| !on_loop.contains(v)).collect();
+        let inside: Vec<u32> = cavity.vertices.iter().copied().filter(|v| !on_loop.contains(v)).collect();
         if inside.iter().any(|&v| self.face_of(v) != Some(face)) {
             return None;
         }
-        let corners: Vec<usize> = (0..lp.len()).filter(|&i| k[&lp[i]] == 1).collect();
+        let corners: Vec<usize> = (0..lp.len()).filter(|&i| cavity.count(lp[i]) == 1).collect();
         let n = corners.len();
         if !(3..=5).contains(&n) {
             return None;
@@ -343,8 +420,8 @@ impl<'m, 'p> Cavities<'m, 'p> {
             inside.iter().filter_map(|&v| self.singular[v as usize].map(|i| (v, i))).collect();
         let centre_index = 4 - n as i32;
         match singular.as_slice() {
-            [] => {}
-            [(_, i)] if *i == centre_index => {}
+            [] if n == 4 || !self.centre_needs_singularity => {}
+            [(v, i)] if *i == centre_index && (!self.centre_needs_singularity || *v == self.seed) => {}
             _ => return None,
         }
         let old = inside.iter().filter(|&&v| self.quads_of[v as usize].len() != 4).count();
@@ -363,13 +440,7 @@ impl<'m, 'p> Cavities<'m, 'p> {
         let lengths: Vec<usize> = sides.iter().map(|s| s.len() - 1).collect();
         let fits =
             if n == 4 { lengths[0] == lengths[2] && lengths[1] == lengths[3] } else { spokes(&lengths).is_some() };
-        fits.then(|| Plan {
-            face,
-            quads: cavity.iter().copied().collect(),
-            inside,
-            sides,
-            singular: singular.first().copied(),
-        })
+        fits.then(|| Plan { face, quads: cavity.iter().collect(), inside, sides, singular: singular.first().copied() })
     }
 
     /// Builds the pattern of `plan`, relaxes it and, when its shape is good
@@ -384,27 +455,50 @@ impl<'m, 'p> Cavities<'m, 'p> {
             let centre_at = plan.singular.map(|(v, _)| self.mesh.vertices.positions[v as usize]);
             pattern.fill_star(&self.mesh.vertices.positions, &plan.sides, centre_at);
         }
-        let old_min = plan
-            .quads
-            .iter()
-            .map(|&q| quad_scaled_jacobian(&self.mesh.vertices, self.projector.surface, &self.mesh.quads[q as usize]))
-            .fold(f64::INFINITY, f64::min);
+        let old: Vec<[u32; 4]> = plan.quads.iter().map(|&q| self.mesh.quads[q as usize]).collect();
+        let floor = self.worst_scaled_jacobian(&old).min(MIN_SCALED_JACOBIAN);
+        let good = |worst: f64| worst > 0.0 && worst >= floor;
         if !self.place(&pattern, plan.face) {
             self.mesh.vertices.truncate(base as usize);
             return false;
         }
         self.relax(&pattern, plan.face);
-        let new_min = pattern
-            .quads
-            .iter()
-            .map(|q| quad_scaled_jacobian(&self.mesh.vertices, self.projector.surface, q))
-            .fold(f64::INFINITY, f64::min);
-        if !(new_min > 0.0 && new_min >= old_min.min(MIN_SCALED_JACOBIAN)) {
+        let mut accepted = good(self.worst_scaled_jacobian(&pattern.quads));
+        if !accepted && !pattern.pinned.is_empty() {
+            pattern.pinned.clear();
+            self.relax(&pattern, plan.face);
+            accepted = good(self.worst_scaled_jacobian(&pattern.quads))
+                && (!self.centre_needs_singularity || self.centre_stays_near(plan, &pattern));
+        }
+        if !accepted {
             self.mesh.vertices.truncate(base as usize);
             return false;
         }
         self.commit(plan, &pattern);
         true
+    }
+
+    /// True when the centre of `pattern` lies within one boundary edge
+    /// length (mean over the cavity's loop) of the singular vertex it
+    /// replaces, so that relaxing it did not carry the singularity away.
+    fn centre_stays_near(&self, plan: &Plan, pattern: &Pattern) -> bool {
+        let (Some((s, _)), Some(c)) = (plan.singular, pattern.centre) else { return true };
+        let p = &self.mesh.vertices.positions;
+        let edges: Vec<f64> = plan
+            .sides
+            .iter()
+            .flat_map(|side| side.windows(2).map(|w| (p[w[1] as usize] - p[w[0] as usize]).norm()))
+            .collect();
+        let h = edges.iter().sum::<f64>() / edges.len().max(1) as f64;
+        (p[c as usize] - p[s as usize]).norm() <= h
+    }
+
+    /// Worst scaled Jacobian of `quads`.
+    fn worst_scaled_jacobian(&self, quads: &[[u32; 4]]) -> f64 {
+        quads
+            .iter()
+            .map(|q| quad_scaled_jacobian(&self.mesh.vertices, self.projector.surface, q))
+            .fold(f64::INFINITY, f64::min)
     }
 
     /// Appends the pattern's new vertices, projected onto model face `face`.
@@ -417,26 +511,41 @@ impl<'m, 'p> Cavities<'m, 'p> {
     }
 
     /// Moves each new, unpinned vertex to the centroid of its edge
-    /// neighbours, projected onto the face, [`RELAX_SWEEPS`] times in order.
+    /// neighbours, [`RELAX_ROUNDS`] rounds of [`SWEEPS_PER_ROUND`] sweeps in
+    /// order, projecting the moved vertices onto the face after each round
+    /// (one projection per round instead of per sweep: the centroid of
+    /// neighbours on the surface leaves it by second order only).
     fn relax(&mut self, pattern: &Pattern, face: u32) {
         let mut neighbours: BTreeMap<u32, BTreeSet<u32>> = BTreeMap::new();
         for q in &pattern.quads {
             for k in 0..4 {
                 let (a, b) = (q[k], q[(k + 1) % 4]);
-                neighbours.entry(a).or_default().insert(b);
-                neighbours.entry(b).or_default().insert(a);
+                if b >= pattern.base {
+                    neighbours.entry(b).or_default().insert(a);
+                }
+                if a >= pattern.base {
+                    neighbours.entry(a).or_default().insert(b);
+                }
             }
         }
-        for _ in 0..RELAX_SWEEPS {
-            for (&v, around) in &neighbours {
-                if v < pattern.base || pattern.pinned.contains(&v) {
-                    continue;
+        let moving: Vec<(u32, Vec<u32>)> = neighbours
+            .into_iter()
+            .filter(|(v, _)| !pattern.pinned.contains(v))
+            .map(|(v, around)| (v, around.into_iter().collect()))
+            .collect();
+        for _ in 0..RELAX_ROUNDS {
+            let p = &mut self.mesh.vertices.positions;
+            for _ in 0..SWEEPS_PER_ROUND {
+                for (v, around) in &moving {
+                    let sum = around.iter().fold(Vec3::zeros(), |acc, &w| acc + p[w as usize]);
+                    p[*v as usize] = sum / around.len() as f64;
                 }
-                let p = &self.mesh.vertices.positions;
-                let mean = around.iter().fold(Vec3::zeros(), |acc, &w| acc + p[w as usize]) / around.len() as f64;
-                if let Some(proj) = self.projector.project_to_face(face, &mean) {
-                    self.mesh.vertices.positions[v as usize] = proj.position;
-                    self.mesh.vertices.on_surface[v as usize] = proj.on_surface;
+            }
+            for (v, _) in &moving {
+                let x = self.mesh.vertices.positions[*v as usize];
+                if let Some(proj) = self.projector.project_to_face(face, &x) {
+                    self.mesh.vertices.positions[*v as usize] = proj.position;
+                    self.mesh.vertices.on_surface[*v as usize] = proj.on_surface;
                 }
             }
         }
