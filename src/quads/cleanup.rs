@@ -121,7 +121,9 @@ impl<'m> Work<'m> {
             }
         }
         let alive_quad = vec![true; mesh.quads.len()];
-        Self { mesh, alive_quad, alive_vertex: vec![true; n], quads_of, ideal, singular }
+        // A vertex in no quad (a midpoint of a strip that was refused) is dropped.
+        let alive_vertex = quads_of.iter().map(|q| !q.is_empty()).collect();
+        Self { mesh, alive_quad, alive_vertex, quads_of, ideal, singular }
     }
 
     /// `|ideal − quads|` of vertex `v` if it had `count` quads.

@@ -46,6 +46,7 @@ pub mod recombine;
 pub mod report;
 pub mod size_map;
 pub mod smooth;
+pub mod strip;
 pub mod subdivision;
 pub mod surface_mesh;
 pub mod triangulation;

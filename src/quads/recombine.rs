@@ -7,9 +7,11 @@
 //! 2. [`super::matching`]: every triangle greedy left free is the root of an
 //!    augmenting-path (blossom) search on a growing window of its face, so
 //!    the pairing becomes a maximum matching of the candidate pairs.
-//! 3. [`super::subdivision`]: the faces where triangles remain (odd count, or
-//!    no perfect matching among the convex pairs), with every face sharing
-//!    an edge with them, are midpoint-subdivided into quads.
+//! 3. [`super::strip`]: triangles still free are joined in pairs through a
+//!    strip of quads split at the midpoints of the edges it crosses.
+//! 4. [`super::subdivision`]: the faces where triangles remain (odd count,
+//!    or strips that stay invalid), with every face sharing an edge with
+//!    them, are midpoint-subdivided into quads.
 //!
 //! Feature-curve edges are never removed (no pair crosses one). The vertex
 //! set is the triangulation's plus the subdivision's new vertices, appended,
@@ -22,6 +24,7 @@ use serde::Serialize;
 use super::error::QuadsError;
 use super::matching::complete_matching;
 use super::pairing::{DualGraph, NONE, greedy_partners};
+use super::strip::{StripStats, join_free_triangles};
 use super::subdivision::{Element, faces_to_subdivide, subdivide};
 use super::surface_mesh::{QuadMesh, SurfaceTriangulation};
 use crate::progress::Progress;
@@ -47,6 +50,8 @@ pub struct RecombineStats {
     /// Triangles left free by the completion (no augmenting path, or in a
     /// face already known to need subdivision).
     pub n_unmatched_after_matching: usize,
+    /// Free triangles joined in pairs through strips of split quads.
+    pub strips: StripStats,
     /// Model faces midpoint-subdivided (the last resort; should be 0).
     pub n_subdivided_faces: usize,
     /// Quads made by subdivision.
@@ -99,10 +104,18 @@ pub fn recombine(tri: SurfaceTriangulation, progress: &Progress) -> Result<(Quad
     let t = Instant::now();
     let (elements, face_per_element) = elements(&tri, &graph, &partner);
     let n_faces = tri.model_face_per_triangle.iter().map(|&f| f as usize + 1).max().unwrap_or(0);
-    let failing: Vec<u32> = completion.unmatched.iter().map(|&t| tri.model_face_per_triangle[t as usize]).collect();
+    let SurfaceTriangulation { mut vertices, mut curve_edges, singular_vertices, seam_vertices, .. } = tri;
+    let (elements, face_per_element, strips) =
+        join_free_triangles(&mut vertices, &elements, &face_per_element, &curve_edges);
+    stats.strips = strips;
+    let failing: Vec<u32> = elements
+        .iter()
+        .zip(&face_per_element)
+        .filter(|(e, _)| matches!(e, Element::Triangle(_)))
+        .map(|(_, &f)| f)
+        .collect();
     let flagged = faces_to_subdivide(n_faces, &failing, &graph.face_links);
     stats.n_subdivided_faces = flagged.iter().filter(|&&f| f).count();
-    let SurfaceTriangulation { mut vertices, mut curve_edges, singular_vertices, seam_vertices, .. } = tri;
     let (quads, model_face_per_quad, n_subdivision_quads) =
         subdivide(&mut vertices, &elements, &face_per_element, &flagged, &mut curve_edges);
     stats.n_subdivision_quads = n_subdivision_quads;

@@ -128,7 +128,7 @@ pub fn subdivide(
 }
 
 /// Appends the vertex at the mean of `corners` (module doc) and returns it.
-fn push_mean_vertex(vertices: &mut SurfaceVertices, corners: &[u32], entity: ModelEntity) -> u32 {
+pub(super) fn push_mean_vertex(vertices: &mut SurfaceVertices, corners: &[u32], entity: ModelEntity) -> u32 {
     let k = corners.len() as f64;
     let position = corners.iter().fold(Vec3::zeros(), |s, &v| s + vertices.positions[v as usize]) / k;
     let first = vertices.on_surface[corners[0] as usize];
