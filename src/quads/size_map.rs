@@ -38,7 +38,10 @@
 //! [`SEGMENTS_PER_TURN_CURVE`] along the model curves (`κ` = the polyline's
 //! turning angle over its mean edge length, where it is not a kept corner):
 //! both deficits come to about 0.6 % and 1.1 %, under the coverage check's
-//! 2 %. The cap is never below [`MIN_SIZE_FRACTION`] of the size asked, and
+//! 2 %. The cap is never below [`MIN_SIZE_FRACTION_SURFACE`] (bends) or
+//! [`MIN_SIZE_FRACTION_CURVE`] (curves) of the size asked (a noisy scan
+//! bends everywhere; a flat face bounded by a coarse circle needs the finer
+//! curve), and
 //! it is graded (`h(x) ≤ h(y) + g |x − y|`, `g` = [`SIZE_GRADIENT`]) so the
 //! size changes no faster than a front can follow.
 
@@ -69,8 +72,11 @@ pub const SEGMENTS_PER_TURN_SURFACE: f64 = 16.0;
 /// documentation).
 pub const SEGMENTS_PER_TURN_CURVE: f64 = 24.0;
 
-/// The curvature cap never goes below this fraction of the size asked.
-pub const MIN_SIZE_FRACTION: f64 = 0.125;
+/// The bend cap never goes below this fraction of the size asked.
+pub const MIN_SIZE_FRACTION_SURFACE: f64 = 0.25;
+
+/// The curve cap never goes below this fraction of the size asked.
+pub const MIN_SIZE_FRACTION_CURVE: f64 = 0.125;
 
 /// Largest growth of the capped size per unit length.
 pub const SIZE_GRADIENT: f64 = 0.5;
@@ -231,13 +237,12 @@ pub fn curvature_bounded_sizes(
     model: &QuadModel,
     size: f64,
 ) -> SizeMap {
-    let turns = turns_per_length(surface, topo, model);
-    let floor = MIN_SIZE_FRACTION * size;
+    let turns = turns_per_length(surface, topo, model, size);
     let mut h = sizes.size_per_vertex;
     let mut capped = false;
     for (hv, &t) in h.iter_mut().zip(&turns) {
         if t > 0.0 {
-            let cap = (1.0 / t).max(floor);
+            let cap = 1.0 / t;
             if cap < *hv {
                 *hv = cap;
                 capped = true;
@@ -252,11 +257,13 @@ pub fn curvature_bounded_sizes(
 
 /// Per vertex, the quad edges per unit length its curvature asks for
 /// (`N κ / 2π`, the largest over its non-curve edges and, on a model curve,
-/// the curve's turning; module documentation).
-fn turns_per_length(surface: &TriMesh, topo: &Topology, model: &QuadModel) -> Vec<f64> {
+/// the curve's turning, each at most its floor's; module documentation),
+/// for the size `size` asked.
+fn turns_per_length(surface: &TriMesh, topo: &Topology, model: &QuadModel, size: f64) -> Vec<f64> {
     let mut turns = vec![0.0f64; surface.n_vertices()];
     let per_radian_surface = SEGMENTS_PER_TURN_SURFACE / std::f64::consts::TAU;
     let per_radian_curve = SEGMENTS_PER_TURN_CURVE / std::f64::consts::TAU;
+    let (most_surface, most_curve) = (1.0 / (MIN_SIZE_FRACTION_SURFACE * size), 1.0 / (MIN_SIZE_FRACTION_CURVE * size));
     for e in 0..topo.n_edges() {
         let edge = EdgeId::new(e);
         let &[f, g] = topo.edge_faces(edge) else { continue };
@@ -272,7 +279,7 @@ fn turns_per_length(surface: &TriMesh, topo: &Topology, model: &QuadModel) -> Ve
         // bend is spread over.
         let width = (surface.face_area(f) + surface.face_area(g)) / length;
         if width > 0.0 {
-            let t = per_radian_surface * dihedral_angle(surface, f, g) / width;
+            let t = (per_radian_surface * dihedral_angle(surface, f, g) / width).min(most_surface);
             for v in [a, b] {
                 turns[v.idx()] = turns[v.idx()].max(t);
             }
@@ -285,7 +292,7 @@ fn turns_per_length(surface: &TriMesh, topo: &Topology, model: &QuadModel) -> Ve
             let turn = angle_between(&(q - p), &(r - q));
             let length = 0.5 * ((q - p).norm() + (r - q).norm());
             if turn.to_degrees() <= SHARP_TURN_DEG && length > 0.0 {
-                turns[v.idx()] = turns[v.idx()].max(per_radian_curve * turn / length);
+                turns[v.idx()] = turns[v.idx()].max((per_radian_curve * turn / length).min(most_curve));
             }
         };
         for w in verts.windows(3) {
