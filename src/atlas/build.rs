@@ -554,7 +554,7 @@ fn attach_curves(atlas: &mut Atlas, topo: &Topology, feature_pairs: &[(VertexId,
             _ => true,
         })
         .collect();
-    let (corners, chains, _) = edge_chains(&atlas.mesh, topo, &is_border);
+    let (corners, chains, _) = edge_chains(topo, &is_border);
     let mut curves = Vec::with_capacity(chains.len());
     for (c, chain) in chains.into_iter().enumerate() {
         let e0 = chain.edges[0];

@@ -73,7 +73,7 @@ pub fn detect_features(mesh: &TriMesh, topo: &Topology, feature_angle_deg: f64) 
             }
         }
     }
-    let (corners, curves, curve_per_edge) = edge_chains(mesh, topo, &is_feature_edge);
+    let (corners, curves, curve_per_edge) = edge_chains(topo, &is_feature_edge);
     Features {
         is_feature_edge,
         n_sharp_edges: n_sharp,
@@ -101,13 +101,9 @@ pub fn model_faces(topo: &Topology, features: &Features) -> Components {
 
 /// Corners, chains and the chain of each edge, for the edges flagged in
 /// `is_feature` (feature edges here, patch borders for the atlas curves).
-pub(crate) fn edge_chains(
-    mesh: &TriMesh,
-    topo: &Topology,
-    is_feature: &[bool],
-) -> (Vec<VertexId>, Vec<FeatureCurve>, Vec<u32>) {
+pub(crate) fn edge_chains(topo: &Topology, is_feature: &[bool]) -> (Vec<VertexId>, Vec<FeatureCurve>, Vec<u32>) {
     // Feature edges incident to each vertex, as CSR.
-    let n_v = mesh.n_vertices();
+    let n_v = topo.n_vertices();
     let mut offsets = vec![0u32; n_v + 1];
     for (e, _) in is_feature.iter().enumerate().filter(|(_, f)| **f) {
         for v in topo.edges[e] {

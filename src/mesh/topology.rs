@@ -97,6 +97,11 @@ impl Topology {
         topo
     }
 
+    /// Number of vertices of the mesh the topology was built from.
+    pub fn n_vertices(&self) -> usize {
+        self.vertex_face_offsets.len().saturating_sub(1)
+    }
+
     /// Number of edges.
     #[inline]
     pub fn n_edges(&self) -> usize {

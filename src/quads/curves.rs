@@ -358,12 +358,16 @@ pub fn discretize_boundaries(
         }
     }
 
-    // Seams.
-    for (ac, curve) in atlas.curves.iter().enumerate().filter(|(_, c)| !c.is_feature) {
+    // Seams: the atlas curves off the model's curves (a crease the model
+    // leaves out is a seam here, whatever the atlas calls it).
+    for (ac, curve) in atlas.curves.iter().enumerate() {
         let verts = &curve.chain.vertices;
         let e0 = topo
             .edge_between(verts[0], verts[1])
-            .ok_or_else(|| b.error(ac, format!("seam {ac} is not on surface edges")))?;
+            .ok_or_else(|| b.error(ac, format!("atlas curve {ac} is not on surface edges")))?;
+        if model.features.is_feature_edge[e0.idx()] {
+            continue;
+        }
         let face = model.face_per_triangle[topo.edge_faces(e0)[0].idx()];
         let s = arc_lengths(surface, sizes, size, verts);
         let len = s[s.len() - 1];

@@ -26,6 +26,24 @@
 //! component. It is then offset so
 //! that `∫ h⁻² dA` (the number of quads) equals `area / size²`, the count a
 //! constant size would give.
+//!
+//! Curvature bound ([`curvature_bounded_sizes`]). Quads are chords of the
+//! surface. Across a bend of radius `1/κ` a quad edge of length `h` spans
+//! the angle `κh` and its quads lose `≈ (κh)²/24` of the area; a flat face
+//! bounded by a curve of curvature `κ` cut into chords of length `h` loses
+//! `≈ (κh)²/6` (a polygon inscribed in a circle). The size is capped at
+//! `2π / (N κ)` with `N` = [`SEGMENTS_PER_TURN_SURFACE`] where the surface
+//! bends off the model curves (`κ` = the dihedral angle of an edge over the
+//! mean height of its two triangles above it) and `N` =
+//! [`SEGMENTS_PER_TURN_CURVE`] along the model curves (`κ` = the polyline's
+//! turning angle over its mean edge length, where it is not a kept corner):
+//! both deficits come to about 0.6 % and 1.1 %, under the coverage check's
+//! 2 %. The cap is never below [`MIN_SIZE_FRACTION_SURFACE`] (bends) or
+//! [`MIN_SIZE_FRACTION_CURVE`] (curves) of the size asked (a noisy scan
+//! bends everywhere; a flat face bounded by a coarse circle needs the finer
+//! curve), and
+//! it is graded (`h(x) ≤ h(y) + g |x − y|`, `g` = [`SIZE_GRADIENT`]) so the
+//! size changes no faster than a front can follow.
 
 use nalgebra::Complex;
 
@@ -36,10 +54,32 @@ use crate::crossfield::frames::Discretization;
 use crate::geom::Vec3;
 use crate::linalg::{CholeskySolver, Triplets};
 use crate::mesh::components::connected_components;
-use crate::mesh::{FaceId, Topology, TriMesh};
+use crate::mesh::{EdgeId, FaceId, Topology, TriMesh, VertexId};
+
+use super::curves::SHARP_TURN_DEG;
+use super::model::QuadModel;
+use crate::atlas::features::dihedral_angle;
+use crate::geom::angle_between;
 
 /// Fraction of `log h` values clamped at each end, per component.
 const QUANTILE: f64 = 0.05;
+
+/// Quad edges per full turn where the surface bends, at least (module
+/// documentation).
+pub const SEGMENTS_PER_TURN_SURFACE: f64 = 16.0;
+
+/// Quad edges per full turn of a model curve, at least (module
+/// documentation).
+pub const SEGMENTS_PER_TURN_CURVE: f64 = 24.0;
+
+/// The bend cap never goes below this fraction of the size asked.
+pub const MIN_SIZE_FRACTION_SURFACE: f64 = 0.25;
+
+/// The curve cap never goes below this fraction of the size asked.
+pub const MIN_SIZE_FRACTION_CURVE: f64 = 0.125;
+
+/// Largest growth of the capped size per unit length.
+pub const SIZE_GRADIENT: f64 = 0.5;
 
 /// Target edge length per surface vertex.
 #[derive(Debug, Clone)]
@@ -188,6 +228,111 @@ pub fn size_map_of_edge_field(
     })
 }
 
+/// `sizes` capped by the curvature of `surface` off and along the curves
+/// of `model`, for the size `size` asked (module documentation).
+pub fn curvature_bounded_sizes(
+    sizes: SizeMap,
+    surface: &TriMesh,
+    topo: &Topology,
+    model: &QuadModel,
+    size: f64,
+) -> SizeMap {
+    let turns = turns_per_length(surface, topo, model, size);
+    let mut h = sizes.size_per_vertex;
+    let mut capped = false;
+    for (hv, &t) in h.iter_mut().zip(&turns) {
+        if t > 0.0 {
+            let cap = 1.0 / t;
+            if cap < *hv {
+                *hv = cap;
+                capped = true;
+            }
+        }
+    }
+    if capped {
+        grade_sizes(surface, topo, &mut h);
+    }
+    SizeMap { size_per_vertex: h }
+}
+
+/// Per vertex, the quad edges per unit length its curvature asks for
+/// (`N κ / 2π`, the largest over its non-curve edges and, on a model curve,
+/// the curve's turning, each at most its floor's; module documentation),
+/// for the size `size` asked.
+fn turns_per_length(surface: &TriMesh, topo: &Topology, model: &QuadModel, size: f64) -> Vec<f64> {
+    let mut turns = vec![0.0f64; surface.n_vertices()];
+    let per_radian_surface = SEGMENTS_PER_TURN_SURFACE / std::f64::consts::TAU;
+    let per_radian_curve = SEGMENTS_PER_TURN_CURVE / std::f64::consts::TAU;
+    let (most_surface, most_curve) = (1.0 / (MIN_SIZE_FRACTION_SURFACE * size), 1.0 / (MIN_SIZE_FRACTION_CURVE * size));
+    for e in 0..topo.n_edges() {
+        let edge = EdgeId::new(e);
+        let &[f, g] = topo.edge_faces(edge) else { continue };
+        if model.features.is_feature_edge[e] {
+            continue;
+        }
+        let [a, b] = topo.edges[e];
+        let length = (surface.position(b) - surface.position(a)).norm();
+        if length == 0.0 {
+            continue;
+        }
+        // Mean height of the two triangles over the edge: the width the
+        // bend is spread over.
+        let width = (surface.face_area(f) + surface.face_area(g)) / length;
+        if width > 0.0 {
+            let t = (per_radian_surface * dihedral_angle(surface, f, g) / width).min(most_surface);
+            for v in [a, b] {
+                turns[v.idx()] = turns[v.idx()].max(t);
+            }
+        }
+    }
+    for curve in &model.features.curves {
+        let verts = &curve.vertices;
+        let mut turn_at = |prev: VertexId, v: VertexId, next: VertexId| {
+            let (p, q, r) = (surface.position(prev), surface.position(v), surface.position(next));
+            let turn = angle_between(&(q - p), &(r - q));
+            let length = 0.5 * ((q - p).norm() + (r - q).norm());
+            if turn.to_degrees() <= SHARP_TURN_DEG && length > 0.0 {
+                turns[v.idx()] = turns[v.idx()].max((per_radian_curve * turn / length).min(most_curve));
+            }
+        };
+        for w in verts.windows(3) {
+            turn_at(w[0], w[1], w[2]);
+        }
+        if curve.is_closed() && verts.len() > 2 {
+            turn_at(verts[verts.len() - 2], verts[0], verts[1]);
+        }
+    }
+    turns
+}
+
+/// Lowers `h` to `min over y of h(y) + g |x − y|` along the surface edges
+/// (Dijkstra from every vertex at once), `g` = [`SIZE_GRADIENT`].
+fn grade_sizes(surface: &TriMesh, topo: &Topology, h: &mut [f64]) {
+    use std::cmp::Reverse;
+    use std::collections::BinaryHeap;
+    let mut neighbours: Vec<Vec<(u32, f64)>> = vec![Vec::new(); h.len()];
+    for [a, b] in &topo.edges {
+        let l = SIZE_GRADIENT * (surface.position(*a) - surface.position(*b)).norm();
+        neighbours[a.idx()].push((b.0, l));
+        neighbours[b.idx()].push((a.0, l));
+    }
+    // Sizes are positive, so their bit patterns order like the values.
+    let mut heap: BinaryHeap<Reverse<(u64, u32)>> =
+        h.iter().enumerate().map(|(v, x)| Reverse((x.to_bits(), v as u32))).collect();
+    while let Some(Reverse((bits, v))) = heap.pop() {
+        let hv = f64::from_bits(bits);
+        if hv > h[v as usize] {
+            continue;
+        }
+        for &(w, l) in &neighbours[v as usize] {
+            if hv + l < h[w as usize] {
+                h[w as usize] = hv + l;
+                heap.push(Reverse(((hv + l).to_bits(), w)));
+            }
+        }
+    }
+}
+
 /// True when a singularity of `field` lies off the boundary (the ones at
 /// boundary corners leave the field smooth in the domain).
 fn has_interior_singularity(topo: &Topology, field: &Crossfield) -> bool {
@@ -290,6 +435,30 @@ fn scaled_sizes(
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// On an open 12-sided prism of radius 1 (facet width `w = 2 sin 15°`,
+    /// a 30° fold between facets, the two rims turning 30° per vertex), at a
+    /// size far too large: the rims get 24 edges per turn (`h = w/2`), the
+    /// rest 16 per turn of the folds (`h = 12 w / 16`); a plane gets no cap.
+    #[test]
+    fn the_curvature_cap_gives_a_prism_24_edges_on_its_rims_and_16_around() {
+        let mesh = fixtures::cylinder(1.0, 2.0, 12, 4);
+        let topo = Topology::new(&mesh);
+        let model = crate::quads::quad_model(&topo, &crate::atlas::features::detect_features(&mesh, &topo, 40.0));
+        let size = 1.0;
+        let map = curvature_bounded_sizes(SizeMap::uniform(mesh.n_vertices(), size), &mesh, &topo, &model, size);
+        let w = 2.0 * 15f64.to_radians().sin();
+        for (p, h) in mesh.positions.iter().zip(&map.size_per_vertex) {
+            let on_rim = p.z.abs() < 1e-12 || (p.z - 2.0).abs() < 1e-12;
+            let expected = if on_rim { w / 2.0 } else { 12.0 * w / 16.0 };
+            assert!((h - expected).abs() < 1e-9, "z = {}: h = {h}, expected {expected}", p.z);
+        }
+        let plane = fixtures::square(4);
+        let topo = Topology::new(&plane);
+        let model = crate::quads::quad_model(&topo, &crate::atlas::features::detect_features(&plane, &topo, 40.0));
+        let map = curvature_bounded_sizes(SizeMap::uniform(plane.n_vertices(), 0.3), &plane, &topo, &model, 0.3);
+        assert!(map.size_per_vertex.iter().all(|&h| h == 0.3));
+    }
     use crate::crossfield::frames::{edge_direction, edge_normal};
     use crate::mesh::{EdgeId, fixtures};
 

@@ -28,7 +28,7 @@ use super::insertion::{ChartPoint, insert_points};
 use super::model::QuadModel;
 use super::parity::ParityStats;
 use super::patch_chart::{PatchChart, surface_position};
-use super::size_map::{SizeMap, conformal_size_map};
+use super::size_map::{SizeMap, conformal_size_map, curvature_bounded_sizes};
 use super::surface_mesh::{ModelEntity, SurfacePoint, SurfaceTriangulation};
 use crate::atlas::{Atlas, AtlasPatch};
 use crate::crossfield::Crossfield;
@@ -101,7 +101,7 @@ pub fn surface_triangulation(
     if !(size > 0.0 && size.is_finite()) {
         return Err(QuadsError::InvalidOption { name: "size", reason: format!("must be positive, got {size}") });
     }
-    let sizes = conformal_size_map(surface, topo, field, size)?;
+    let sizes = curvature_bounded_sizes(conformal_size_map(surface, topo, field, size)?, surface, topo, model, size);
     let boundary = discretize_boundaries(surface, topo, atlas, model, size, &sizes)?;
     progress.check()?;
     progress.set(0.1);

@@ -1,0 +1,205 @@
+//! The quads stage on the real inputs of `../shared/data/corpus` and
+//! `../shared/data/gmsh` through the real binary (`meshatlas run --stages
+//! quads`): the stage asserts its own checks (0 triangles, no inverted or
+//! degenerate quad, coverage, valence identity, conformity; a failed check
+//! is an error), so a run that succeeds has passed them; this test adds the
+//! report's counts and an independent judge, Gmsh, which must open
+//! `quads.msh` and rate every quad with `minSICN > 0`. And the output bytes
+//! do not depend on the thread count (`RAYON_NUM_THREADS` = 1 and 2).
+//!
+//! Every file of both folders is listed in [`INPUTS`]: run, or left out
+//! with the reason (too slow for the CI budget of about 2 minutes on 2
+//! cores, or a known failure of issue 13, run by the ignored test). A file
+//! added to a folder without an entry fails [`every_input_file_is_listed`].
+
+mod common;
+
+use common::{path_str, python, scratch, shared_data};
+use serde_json::Value;
+use std::path::{Path, PathBuf};
+use std::process::Command;
+
+/// What this test does with an input file.
+#[derive(Debug, Clone, Copy, PartialEq)]
+enum Plan {
+    /// Run in CI.
+    Run,
+    /// Known to fail today (issue 13): run by the ignored test.
+    Fails(&'static str),
+    /// Left out of CI for its run time.
+    TooSlow(&'static str),
+}
+
+/// Every input file (folder relative to `../shared/data`, name) and its plan.
+const INPUTS: &[(&str, &str, Plan)] = &[
+    ("gmsh", "cylinder_44.stl", Plan::Run),
+    ("gmsh", "disk_tiny.stl", Plan::Run),
+    ("gmsh", "sphere_tiny.stl", Plan::Run),
+    ("gmsh", "disk_3k.stl", Plan::Run),
+    ("gmsh", "sphere_3k.stl", Plan::Run),
+    ("gmsh", "torus_20k.stl", Plan::Run),
+    ("corpus", "cylinder_coarse.stl", Plan::Run),
+    ("corpus", "gmsh_object.stl", Plan::Run),
+    ("corpus", "spot.obj", Plan::Run),
+    ("corpus", "gmsh_terrain.stl", Plan::Run),
+    ("corpus", "gmsh_aorta2.stl", Plan::Run),
+    ("corpus", "aorta_closed.stl", Plan::Run),
+    (
+        "corpus",
+        "gmsh_t13.stl",
+        Plan::Fails("2 degenerate quads, a 180° corner: Gmsh minSICN 0, our scaled Jacobian 2e-15 passes `> 0`"),
+    ),
+    ("corpus", "gmsh_lever.stl", Plan::Fails("a patch's boundary polygon self-intersects in (u, v)")),
+    (
+        "corpus",
+        "plate_holes.stl",
+        Plan::Fails("Gmsh minSICN −0.74 where our scaled Jacobian is 4e-16; 13 faces midpoint-subdivided"),
+    ),
+    ("corpus", "featuretype.stl", Plan::Fails("inverted quads in the 57 midpoint-subdivided faces")),
+    ("corpus", "adis16480.stl", Plan::Fails("inverted quads in the 123 midpoint-subdivided faces")),
+    ("corpus", "fandisk.obj", Plan::Fails("inverted quads in the 12 midpoint-subdivided faces")),
+    ("corpus", "cow.obj", Plan::Fails("inverted quads in the 66 midpoint-subdivided faces")),
+    ("corpus", "camelhead.obj", Plan::Fails("inverted quads in the 11 midpoint-subdivided faces")),
+    ("corpus", "fault_santa_monica_bay.obj", Plan::Fails("inverted quads in the 2 midpoint-subdivided faces")),
+    ("corpus", "fault_opal_mound.obj", Plan::Fails("coverage: a 6-quad model face covers 4 % less than its input")),
+    (
+        "corpus",
+        "fault_ridgecrest_2019.obj",
+        Plan::Fails("coverage: a 6-quad model face covers 5 % less than its input"),
+    ),
+    ("corpus", "bunny.obj", Plan::TooSlow("12–17 s in the dev profile; fails today too (inverted quads)")),
+];
+
+/// Input formats the folders hold; other files (notes, atlases) are not inputs.
+const INPUT_EXTENSIONS: &[&str] = &["stl", "obj", "ply"];
+
+fn input_path(folder: &str, name: &str) -> PathBuf {
+    shared_data().join(folder).join(name)
+}
+
+/// `meshatlas run --stages quads` on `input` into `out` with
+/// `RAYON_NUM_THREADS = threads`: the report, or stderr as the error.
+fn run_quads(input: &Path, out: &Path, threads: usize) -> Result<Value, String> {
+    let o = Command::new(env!("CARGO_BIN_EXE_meshatlas"))
+        .env("RAYON_NUM_THREADS", threads.to_string())
+        .arg("run")
+        .arg(input)
+        .arg("--stages")
+        .arg("quads")
+        .arg("--out")
+        .arg(out)
+        .arg("--json")
+        .output()
+        .expect("run meshatlas");
+    if !o.status.success() {
+        return Err(String::from_utf8_lossy(&o.stderr).into_owned());
+    }
+    serde_json::from_slice(&o.stdout).map_err(|e| format!("bad report JSON: {e}"))
+}
+
+/// Gmsh opens each file and rates its 2D elements: per file the count
+/// rated and the smallest `minSICN`.
+const GMSH_SICN: &str = r#"
+gmsh.initialize(["-nt", "1"])
+gmsh.option.setNumber("General.Terminal", 0)
+out = {}
+for msh in sys.argv[1:]:
+    gmsh.clear()
+    gmsh.open(msh)
+    sicn = []
+    for (_, s) in gmsh.model.getEntities(2):
+        _, tags, _ = gmsh.model.mesh.getElements(2, s)
+        for tg in tags:
+            sicn.extend(gmsh.model.mesh.getElementQualities(list(tg), "minSICN"))
+    out[msh] = {"n_rated": len(sicn), "min_sicn": min(sicn) if sicn else None}
+gmsh.finalize()
+print(json.dumps(out))
+"#;
+
+/// Runs every file of `plan` and asserts the report's counts and Gmsh's
+/// rating; all failures are collected, then reported together.
+fn check_inputs(suite: &str, keep: impl Fn(&Plan) -> bool) {
+    let mut failures = Vec::new();
+    let mut rated = Vec::new();
+    for &(folder, name, plan) in INPUTS.iter().filter(|x| keep(&x.2)) {
+        let out = scratch(suite, name);
+        match run_quads(&input_path(folder, name), &out, 2) {
+            Err(e) => failures.push(format!("{name}: the stage failed: {}", e.trim())),
+            Ok(report) => {
+                let q = &report["stages"]["quads"];
+                let n_quads = q["n_quads"].as_u64().unwrap_or(0);
+                if n_quads == 0 || q["n_triangles"] != 0 || q["n_inverted"] != 0 {
+                    failures.push(format!(
+                        "{name} ({plan:?}): {} quads, {} triangles, {} inverted",
+                        q["n_quads"], q["n_triangles"], q["n_inverted"]
+                    ));
+                }
+                rated.push((name, out.join("quads.msh"), n_quads));
+            }
+        }
+    }
+    if !rated.is_empty() {
+        let paths: Vec<&str> = rated.iter().map(|(_, p, _)| path_str(p)).collect();
+        let r = python(GMSH_SICN, &paths);
+        for (name, path, n_quads) in &rated {
+            let g = &r[path_str(path)];
+            let min = g["min_sicn"].as_f64();
+            if g["n_rated"].as_u64() != Some(*n_quads) || !min.is_some_and(|m| m > 0.0) {
+                failures.push(format!("{name}: Gmsh rated {} of {n_quads} quads, min SICN {:?}", g["n_rated"], min));
+            }
+        }
+    }
+    assert!(failures.is_empty(), "{}", failures.join("\n"));
+}
+
+#[test]
+fn every_input_file_is_listed() {
+    for folder in ["corpus", "gmsh"] {
+        let dir = shared_data().join(folder);
+        let mut names: Vec<String> = std::fs::read_dir(&dir)
+            .unwrap_or_else(|e| panic!("{}: {e}", dir.display()))
+            .filter_map(|e| e.ok().map(|e| e.file_name().to_string_lossy().into_owned()))
+            .filter(|n| n.rsplit_once('.').is_some_and(|(_, ext)| INPUT_EXTENSIONS.contains(&ext)))
+            .collect();
+        names.sort();
+        for n in &names {
+            assert!(INPUTS.iter().any(|(f, name, _)| *f == folder && name == n), "{folder}/{n} is not in INPUTS");
+        }
+        for (f, name, _) in INPUTS.iter().filter(|(f, _, _)| *f == folder) {
+            assert!(names.iter().any(|n| n == name), "{f}/{name} is in INPUTS but not in the folder");
+        }
+    }
+}
+
+#[test]
+fn the_quads_stage_passes_its_checks_and_gmsh_on_the_corpus() {
+    check_inputs("quads_corpus", |p| *p == Plan::Run);
+}
+
+#[test]
+#[ignore = "known failures of issue 13, listed in INPUTS"]
+fn the_quads_stage_passes_on_the_known_failures() {
+    check_inputs("quads_corpus_failing", |p| matches!(p, Plan::Fails(_)));
+}
+
+#[test]
+fn quads_artifacts_do_not_depend_on_the_thread_count() {
+    // A closed surface with feature curves and several patches, and one
+    // with singularities and no feature.
+    for (folder, name) in [("corpus", "gmsh_object.stl"), ("gmsh", "sphere_3k.stl")] {
+        let input = input_path(folder, name);
+        let dirs: Vec<PathBuf> = [1, 2]
+            .into_iter()
+            .map(|threads| {
+                let out = scratch("quads_corpus_threads", &format!("{name}.{threads}"));
+                run_quads(&input, &out, threads).unwrap_or_else(|e| panic!("{name}, {threads} threads: {e}"));
+                out
+            })
+            .collect();
+        for artifact in ["quads.msh", "quads.vtu"] {
+            let bytes: Vec<Vec<u8>> = dirs.iter().map(|d| std::fs::read(d.join(artifact)).unwrap()).collect();
+            assert!(!bytes[0].is_empty(), "{name}: empty {artifact}");
+            assert!(bytes[0] == bytes[1], "{name}: {artifact} differs between 1 and 2 threads");
+        }
+    }
+}
