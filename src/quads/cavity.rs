@@ -47,8 +47,8 @@ const MAX_CAVITY_QUADS: usize = 2000;
 /// Rings grown around a seed before giving up on it.
 const MAX_RINGS: usize = 25;
 
-/// Passes over all irregular vertices.
-const MAX_PASSES: usize = 6;
+/// Passes over all irregular vertices, in each of the two phases.
+const MAX_PASSES: usize = 3;
 
 /// Relaxation rounds of a new pattern's inside vertices, each a projection
 /// onto the face after [`SWEEPS_PER_ROUND`] centroid sweeps.
@@ -284,7 +284,7 @@ impl<'m, 'p> Cavities<'m, 'p> {
         }
         for _ in 0..MAX_RINGS {
             if !self.make_convex(&mut cavity, face) {
-                return false;
+                break;
             }
             if let Some(plan) = self.plan(&cavity, face) {
                 if self.apply(&plan) {
@@ -295,7 +295,7 @@ impl<'m, 'p> Cavities<'m, 'p> {
                 stats.rejected_shape += 1;
             }
             if !self.add_ring(&mut cavity, face) {
-                return false;
+                break;
             }
         }
         false
