@@ -33,14 +33,18 @@ pub struct StripStats {
     pub n_pairs_joined: usize,
     /// Quads split along the strips.
     pub n_quads_split: usize,
-    /// Model faces whose strips stayed invalid after relaxing (left to
+    /// Strips undone because a quad of a strip of their face stayed at or
+    /// below the scaled Jacobian floor after relaxing (the face is left to
     /// subdivision).
-    pub n_faces_refused: usize,
+    pub n_strips_undone: usize,
 }
 
 /// The elements with an index of their edges.
 struct Elements<'a> {
     elements: Vec<Option<(Element, u32)>>,
+    /// Elements made by a strip (not crossed by later strips, so a strip
+    /// can be undone alone).
+    frozen: Vec<bool>,
     by_edge: HashMap<(u32, u32), Vec<usize>>,
     curve: &'a HashSet<(u32, u32)>,
 }
@@ -52,7 +56,8 @@ fn key(a: u32, b: u32) -> (u32, u32) {
 
 impl<'a> Elements<'a> {
     fn new(elements: &[Element], faces: &[u32], curve: &'a HashSet<(u32, u32)>) -> Self {
-        let mut out = Self { elements: Vec::with_capacity(elements.len()), by_edge: HashMap::new(), curve };
+        let mut out =
+            Self { elements: Vec::with_capacity(elements.len()), frozen: Vec::new(), by_edge: HashMap::new(), curve };
         for (e, &f) in elements.iter().zip(faces) {
             out.add(*e, f);
         }
@@ -62,6 +67,7 @@ impl<'a> Elements<'a> {
     /// Appends `element` of model face `face`.
     fn add(&mut self, element: Element, face: u32) -> usize {
         let i = self.elements.len();
+        self.frozen.push(false);
         let c = element.corners();
         for k in 0..c.len() {
             self.by_edge.entry(key(c[k], c[(k + 1) % c.len()])).or_default().push(i);
@@ -82,33 +88,52 @@ impl<'a> Elements<'a> {
     }
 
     /// The shortest path of elements of `from`'s face from `from` to
-    /// another free triangle, across non-curve edges, with the edge crossed
-    /// into each element after the first.
+    /// another free triangle, across non-curve edges, through quads not
+    /// made by an earlier strip and crossing at least one of them between
+    /// opposite edges (see [`cuts`]), with no element twice; with the edge
+    /// crossed into each element after the first.
     fn path_to_free_triangle(&self, from: usize) -> Option<Vec<(usize, (u32, u32))>> {
         let (_, face) = self.elements[from]?;
-        let mut parent: HashMap<usize, (usize, (u32, u32))> = HashMap::new();
-        let mut queue = VecDeque::from([from]);
-        while let Some(e) = queue.pop_front() {
-            let Some((element, _)) = self.elements[e] else { continue };
+        let start = Step { element: from, entry: NO_ENTRY, straight: false };
+        let mut parent: HashMap<Step, (Step, (u32, u32))> = HashMap::new();
+        let mut queue = VecDeque::from([start]);
+        while let Some(step) = queue.pop_front() {
+            let Some((element, _)) = self.elements[step.element] else { continue };
             let c = element.corners();
             for k in 0..c.len() {
+                if k == step.entry {
+                    continue;
+                }
                 let edge = key(c[k], c[(k + 1) % c.len()]);
                 if self.curve.contains(&edge) {
                     continue;
                 }
+                let straight = step.straight || (c.len() == 4 && step.entry != NO_ENTRY && (step.entry + 2) % 4 == k);
                 for &n in self.by_edge.get(&edge).into_iter().flatten() {
-                    if n == from || parent.contains_key(&n) {
-                        continue;
-                    }
                     let Some((other, f)) = self.elements[n] else { continue };
-                    if f != face {
+                    if n == step.element || f != face || self.frozen.get(n).copied().unwrap_or(false) {
                         continue;
                     }
-                    parent.insert(n, (e, edge));
-                    if matches!(other, Element::Triangle(_)) {
-                        return Some(unwind(&parent, from, n));
+                    let oc = other.corners();
+                    let entry = (0..oc.len()).find(|&j| key(oc[j], oc[(j + 1) % oc.len()]) == edge).unwrap_or(NO_ENTRY);
+                    let next = Step { element: n, entry, straight };
+                    if next.element == from || parent.contains_key(&next) {
+                        continue;
                     }
-                    queue.push_back(n);
+                    parent.insert(next, (step, edge));
+                    match other {
+                        Element::Triangle(_) if straight => {
+                            let path = unwind(&parent, start, next);
+                            let mut seen: Vec<usize> = path.iter().map(|p| p.0).collect();
+                            seen.sort_unstable();
+                            seen.dedup();
+                            if seen.len() == path.len() {
+                                return Some(path);
+                            }
+                        }
+                        Element::Triangle(_) => {}
+                        Element::Quad(_) => queue.push_back(next),
+                    }
                 }
             }
         }
@@ -116,17 +141,29 @@ impl<'a> Elements<'a> {
     }
 }
 
-/// The path from `from` to `to` in BFS `parent` links: `(element, edge
-/// crossed into it)`, the first element with a dummy edge.
-fn unwind(parent: &HashMap<usize, (usize, (u32, u32))>, from: usize, to: usize) -> Vec<(usize, (u32, u32))> {
+/// No entry edge (the first element of a path).
+const NO_ENTRY: usize = usize::MAX;
+
+/// A state of the path search: an element, the corner slot of the edge it
+/// was entered by, and whether a quad was crossed straight on the way.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
+struct Step {
+    element: usize,
+    entry: usize,
+    straight: bool,
+}
+
+/// The path from `start` to `end` in the search's `parent` links:
+/// `(element, edge crossed into it)`, the first element with a dummy edge.
+fn unwind(parent: &HashMap<Step, (Step, (u32, u32))>, start: Step, end: Step) -> Vec<(usize, (u32, u32))> {
     let mut path = Vec::new();
-    let mut e = to;
-    while e != from {
-        let (p, edge) = parent[&e];
-        path.push((e, edge));
-        e = p;
+    let mut s = end;
+    while s != start {
+        let (p, edge) = parent[&s];
+        path.push((s.element, edge));
+        s = p;
     }
-    path.push((from, (u32::MAX, u32::MAX)));
+    path.push((start.element, (u32::MAX, u32::MAX)));
     path.reverse();
     path
 }
@@ -188,16 +225,18 @@ fn polygon_normal(corners: &[u32], positions: &[Vec3]) -> Vec3 {
 /// Centroid sweeps over the midpoints after the strips are split: a
 /// midpoint on its edge is a flat corner of the quads beside it until it
 /// moves off the edge.
-const RELAX_SWEEPS: usize = 10;
+const RELAX_SWEEPS: usize = 20;
 
-/// A face whose strips leave a quad at or below this scaled Jacobian (after
-/// relaxing) keeps its original elements and is subdivided instead.
+/// A strip that leaves a quad at or below this scaled Jacobian (after
+/// relaxing) undoes every strip of its face: the face is left to
+/// subdivision.
 const MIN_SCALED_JACOBIAN: f64 = 0.05;
 
 /// Joins the free triangles of `elements` (model faces `faces`) in pairs
 /// (module doc), appending the midpoints to `vertices`. Returns the new
-/// elements and faces: in a face whose strips cannot be made valid, and
-/// for triangles with no partner, the original elements.
+/// elements and faces; in a face where a strip cannot be made valid every
+/// strip is undone, and triangles with no partner stay (midpoints of undone strips are left
+/// unused: cleanup drops vertices in no quad).
 pub fn join_free_triangles(
     vertices: &mut SurfaceVertices,
     elements: &[Element],
@@ -207,7 +246,7 @@ pub fn join_free_triangles(
     let curve: HashSet<(u32, u32)> = curve_edges.iter().map(|&(_, [a, b])| key(a, b)).collect();
     let mut work = Elements::new(elements, faces, &curve);
     let mut stats = StripStats::default();
-    let mut made: Vec<(usize, Vec3)> = Vec::new();
+    let mut strips: Vec<Strip> = Vec::new();
     let mut mids: Vec<u32> = Vec::new();
     let free: Vec<usize> = (0..elements.len()).filter(|&i| matches!(elements[i], Element::Triangle(_))).collect();
     for t in free {
@@ -215,33 +254,50 @@ pub fn join_free_triangles(
             continue;
         }
         let Some(path) = work.path_to_free_triangle(t) else { continue };
-        let Some((new, new_mids)) = split_strip(&mut work, vertices, &path) else { continue };
-        made.extend(new);
+        let originals: Vec<(Element, u32)> = path.iter().filter_map(|&(e, _)| work.elements[e]).collect();
+        let Some((made, new_mids)) = split_strip(&mut work, vertices, &path) else { continue };
         mids.extend(new_mids);
-        stats.n_pairs_joined += 1;
-        stats.n_quads_split += path.len() - 2;
+        strips.push(Strip { originals, made });
     }
     relax_midpoints(&work, vertices, &mids);
+    // A face with an invalid strip is subdivided: all its strips are
+    // undone, so that subdivision splits the elements of the matching.
     let n_faces = faces.iter().map(|&f| f as usize + 1).max().unwrap_or(0);
     let mut refused = vec![false; n_faces];
-    for (e, normal) in &made {
-        if let Some((Element::Quad(q), f)) = work.elements[*e]
-            && !(scaled_jacobian(&q.map(|v| vertices.positions[v as usize]), normal) > MIN_SCALED_JACOBIAN)
-        {
-            refused[f as usize] = true;
+    for strip in &strips {
+        let valid = strip.made.iter().all(|(e, normal)| match work.elements[*e] {
+            Some((Element::Quad(q), _)) => {
+                scaled_jacobian(&q.map(|v| vertices.positions[v as usize]), normal) > MIN_SCALED_JACOBIAN
+            }
+            _ => true,
+        });
+        if !valid {
+            refused[strip.originals[0].1 as usize] = true;
         }
     }
-    stats.n_faces_refused = refused.iter().filter(|&&r| r).count();
-    let (mut out, mut out_faces) = (Vec::new(), Vec::new());
-    for (e, f) in elements.iter().zip(faces).filter(|(_, f)| refused[**f as usize]) {
-        out.push(*e);
-        out_faces.push(*f);
+    for strip in &strips {
+        if refused[strip.originals[0].1 as usize] {
+            for (e, _) in &strip.made {
+                work.remove(*e);
+            }
+            for &(element, face) in &strip.originals {
+                work.add(element, face);
+            }
+            stats.n_strips_undone += 1;
+        } else {
+            stats.n_pairs_joined += 1;
+            stats.n_quads_split += strip.originals.len() - 2;
+        }
     }
-    for (e, f) in work.elements.into_iter().flatten().filter(|(_, f)| !refused[*f as usize]) {
-        out.push(e);
-        out_faces.push(f);
-    }
+    let (out, out_faces) = work.elements.into_iter().flatten().unzip();
     (out, out_faces, stats)
+}
+
+/// A strip that was split: the elements it replaced and the ones it made
+/// (each with the normal of the element it came from).
+struct Strip {
+    originals: Vec<(Element, u32)>,
+    made: Vec<(usize, Vec3)>,
 }
 
 /// Moves each midpoint to the centroid of its edge neighbours,
@@ -322,6 +378,9 @@ fn split_strip(
         } else {
             made.push((work.add(Element::Quad([corners[0], corners[1], corners[2], corners[3]]), face), normal));
         }
+        for &(m, _) in &made {
+            work.frozen[m] = true;
+        }
     }
     Some((made, mids))
 }
@@ -367,7 +426,7 @@ mod tests {
         let (mut v, elements) = strip_of_squares(n);
         let faces = vec![0; elements.len()];
         let (out, out_faces, stats) = join_free_triangles(&mut v, &elements, &faces, &[]);
-        assert_eq!(stats, StripStats { n_pairs_joined: 1, n_quads_split: n as usize, n_faces_refused: 0 });
+        assert_eq!(stats, StripStats { n_pairs_joined: 1, n_quads_split: n as usize, n_strips_undone: 0 });
         assert_eq!(out_faces, vec![0; out.len()]);
         // Each end triangle becomes a quad, each square two quads.
         assert_eq!(out.len(), 2 + 2 * n as usize);
