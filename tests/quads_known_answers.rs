@@ -210,7 +210,7 @@ fn sphere_has_a_valence_3_vertex_within_one_size_of_each_singularity() {
 }
 
 #[test]
-#[ignore = "issue 13 open: with cavity patterns 30 irregular vertices on torus_20k (target ≤ 8; Gmsh does not finish)"]
+#[ignore = "issue 13 open: with cavity patterns 30 irregular vertices on torus_20k, whose one face is still subdivided (target ≤ 8; Gmsh does not finish)"]
 fn torus_has_at_most_8_irregular_vertices() {
     let mesh = shared("gmsh/torus_20k.stl");
     let (result, field) = quads_of(&mesh, &QuadsOptions::default());

@@ -44,6 +44,20 @@ pub fn max_angle_deviation_deg(p: &[Vec3; 4]) -> f64 {
     worst
 }
 
+/// Scaled Jacobian of the surface quad `p`: the worst of its scaled
+/// Jacobian against the surface normal `n` under it and against its own
+/// centre normal (the cross product of its diagonals), so a quad folded
+/// across a crease counts as inverted even when each corner agrees with
+/// the surface under it.
+pub fn surface_quad_scaled_jacobian(p: &[Vec3; 4], n: &Vec3) -> f64 {
+    let own = (p[2] - p[0]).cross(&(p[3] - p[1]));
+    let against_surface = scaled_jacobian(p, n);
+    match own.try_normalize(0.0) {
+        Some(own) => against_surface.min(scaled_jacobian(p, &own)),
+        None => against_surface.min(0.0),
+    }
+}
+
 /// Unit normal of the input surface under quad `quad` of `vertices`: the
 /// mean normal of the input triangles carrying its corners that lie inside
 /// a model face (a curve or corner vertex sits on an edge shared with
@@ -72,6 +86,20 @@ mod tests {
 
     fn square() -> [Vec3; 4] {
         [Vec3::new(0.0, 0.0, 0.0), Vec3::new(1.0, 0.0, 0.0), Vec3::new(1.0, 1.0, 0.0), Vec3::new(0.0, 1.0, 0.0)]
+    }
+
+    #[test]
+    fn a_quad_is_measured_against_the_surface_and_its_own_centre_normal() {
+        let z = Vec3::new(0.0, 0.0, 1.0);
+        let square =
+            [Vec3::new(0.0, 0.0, 0.0), Vec3::new(1.0, 0.0, 0.0), Vec3::new(1.0, 1.0, 0.0), Vec3::new(0.0, 1.0, 0.0)];
+        assert!((surface_quad_scaled_jacobian(&square, &z) - 1.0).abs() < 1e-12);
+        // Clockwise against +z: −1 against the surface, whatever its own normal says.
+        let cw = [square[0], square[3], square[2], square[1]];
+        assert!((surface_quad_scaled_jacobian(&cw, &z) + 1.0).abs() < 1e-12);
+        // A bow tie (corners 2 and 3 swapped): its diagonals are parallel, no own normal.
+        let bow = [square[0], square[1], square[3], square[2]];
+        assert!(surface_quad_scaled_jacobian(&bow, &z) <= 0.0);
     }
 
     #[test]

@@ -24,7 +24,7 @@
 
 use std::collections::BTreeMap;
 
-use super::jacobian::{max_angle_deviation_deg, quad_reference_normal, scaled_jacobian};
+use super::jacobian::{max_angle_deviation_deg, quad_reference_normal, surface_quad_scaled_jacobian};
 use super::surface_mesh::QuadMesh;
 use crate::geom::{Vec3, angle_between};
 use crate::mesh::TriMesh;
@@ -59,7 +59,7 @@ pub fn quad_quality(mesh: &QuadMesh, surface: &TriMesh) -> QuadQuality {
     let scaled: Vec<f64> = mesh
         .quads
         .iter()
-        .map(|q| scaled_jacobian(&corners(q), &quad_reference_normal(&mesh.vertices, surface, q)))
+        .map(|q| surface_quad_scaled_jacobian(&corners(q), &quad_reference_normal(&mesh.vertices, surface, q)))
         .collect();
     let deviation: Vec<f64> = mesh.quads.iter().map(|q| max_angle_deviation_deg(&corners(q))).collect();
     let edge_uses = edge_uses(&mesh.quads);

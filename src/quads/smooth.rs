@@ -27,7 +27,7 @@ use std::time::Instant;
 use serde::Serialize;
 
 use super::error::QuadsError;
-use super::jacobian::{quad_reference_normal, scaled_jacobian};
+use super::jacobian::{quad_reference_normal, surface_quad_scaled_jacobian};
 use super::projection::{Projection, SurfaceProjector};
 use super::surface_mesh::{ModelEntity, QuadMesh, SurfaceVertices};
 use crate::geom::Vec3;
@@ -109,7 +109,7 @@ pub fn smooth(
 /// normal under it.
 pub fn quad_scaled_jacobian(vertices: &SurfaceVertices, surface: &TriMesh, quad: &[u32; 4]) -> f64 {
     let n = quad_reference_normal(vertices, surface, quad);
-    scaled_jacobian(&quad.map(|v| vertices.positions[v as usize]), &n)
+    surface_quad_scaled_jacobian(&quad.map(|v| vertices.positions[v as usize]), &n)
 }
 
 /// Worst and mean quad scaled Jacobian of `mesh` (`None` without quads).
