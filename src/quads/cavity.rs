@@ -1,7 +1,7 @@
-//! Step 5b of the quads stage: irregular vertices removed by remeshing quad
-//! cavities with patterns (Gmsh's quasi-structured mesher,
-//! `qmtQuadCavityRemeshing`; research `quad-meshing.md` §1.2; Takayama et
-//! al. 2014 for the patterns).
+//! Step 5a′ of the quads stage (after cleanup, before smoothing):
+//! irregular vertices removed by remeshing quad cavities with patterns
+//! (Gmsh's quasi-structured mesher, `qmtQuadCavityRemeshing`; research
+//! `quad-meshing.md` §1.2; Takayama et al. 2014 for the patterns).
 //!
 //! A *cavity* is a set of quads of one model face forming a topological
 //! disk. Each vertex `v` on its boundary loop lies in `k(v)` of its quads;
@@ -24,10 +24,16 @@
 //! interpolation of the boundary, relaxed towards their neighbours'
 //! centroid on the model face, and the pattern is kept only when its worst
 //! scaled Jacobian is at least `min(MIN_SCALED_JACOBIAN, the cavity's old
-//! worst)`. A vertex placed at a crossfield singularity is only replaced
-//! by the centre of a pattern of its own valence, which first stays where
-//! the singularity was and relaxes with the others only when that shape
-//! is refused (the spoke lengths fix where the centre fits best). Passes repeat until none applies; everything runs in
+//! worst)`.
+//!
+//! A vertex placed at a crossfield singularity is only replaced by the
+//! centre of a pattern of its own valence, which first stays where the
+//! singularity was and relaxes with the others only when that shape is
+//! refused (the spoke lengths fix where the centre fits best). Two phases
+//! run: in the first, a pattern with a centre must be grown from the
+//! singular vertex it replaces and its relaxed centre must stay within an
+//! edge length of it; the second drops both rules. Each phase repeats
+//! passes until none applies ([`MAX_PASSES`] at most); everything runs in
 //! vertex order, so the result does not depend on the thread count.
 
 use std::collections::{BTreeMap, BTreeSet, HashMap, HashSet};
