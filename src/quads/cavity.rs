@@ -95,12 +95,13 @@ pub fn remesh_cavities(mesh: &mut QuadMesh, projector: &SurfaceProjector) -> Cav
     let mut stats = CavityStats { irregular_before: work.n_irregular(), ..CavityStats::default() };
     for centre_needs_singularity in [true, false] {
         work.centre_needs_singularity = centre_needs_singularity;
+        work.failed.iter_mut().for_each(|f| *f = None);
         for _ in 0..MAX_PASSES {
             stats.passes += 1;
             let mut changed = false;
             let mut v = 0;
             while v < work.quads_of.len() as u32 {
-                if work.is_irregular_seed(v) {
+                if work.is_irregular_seed(v) && work.worth_retrying(v) {
                     changed |= work.grow_and_remesh(v, &mut stats);
                 }
                 v += 1;
@@ -135,6 +136,12 @@ struct Cavities<'m, 'p> {
     centre_needs_singularity: bool,
     /// The vertex the current cavity grows from.
     seed: u32,
+    /// Per vertex that failed as a seed in this phase: the number of
+    /// cavities replaced before, and the centre and radius of a ball
+    /// holding its largest cavity.
+    failed: Vec<Option<(usize, Vec3, f64)>>,
+    /// Every replaced cavity: the centre and radius of a ball holding it.
+    commits: Vec<(Vec3, f64)>,
 }
 
 /// A set of quads: its members in the order they joined, a flag per quad
@@ -249,6 +256,8 @@ impl<'m, 'p> Cavities<'m, 'p> {
             curve_edges,
             centre_needs_singularity: true,
             seed: 0,
+            failed: vec![None; n],
+            commits: Vec::new(),
         }
     }
 
@@ -304,7 +313,23 @@ impl<'m, 'p> Cavities<'m, 'p> {
                 break;
             }
         }
+        let centre = self.mesh.vertices.positions[seed as usize];
+        let reach = self.reach(cavity.vertices.iter().copied(), &centre);
+        self.failed[seed as usize] = Some((self.commits.len(), centre, reach));
         false
+    }
+
+    /// Largest distance from `centre` to one of `vertices`.
+    fn reach(&self, vertices: impl Iterator<Item = u32>, centre: &Vec3) -> f64 {
+        vertices.map(|v| (self.mesh.vertices.positions[v as usize] - centre).norm()).fold(0.0, f64::max)
+    }
+
+    /// False when seed `v` failed in this phase and no cavity replaced
+    /// since then reaches into the region its largest cavity covered (the
+    /// same growth would fail again).
+    fn worth_retrying(&self, v: u32) -> bool {
+        let Some((since, centre, reach)) = self.failed[v as usize] else { return true };
+        self.commits[since..].iter().any(|(c, r)| (c - centre).norm() <= reach + r)
     }
 
     /// Takes into `cavity` every quad around a vertex that the cavity
@@ -560,6 +585,11 @@ impl<'m, 'p> Cavities<'m, 'p> {
     /// Replaces the cavity of `plan` by `pattern` (whose vertices are
     /// already appended) and updates the incidences.
     fn commit(&mut self, plan: &Plan, pattern: &Pattern) {
+        let boundary: Vec<u32> = plan.sides.iter().flatten().copied().collect();
+        let centre = boundary.iter().fold(Vec3::zeros(), |acc, &v| acc + self.mesh.vertices.positions[v as usize])
+            / boundary.len().max(1) as f64;
+        let reach = self.reach(boundary.iter().copied(), &centre);
+        self.commits.push((centre, reach));
         let dead: HashSet<u32> = plan.quads.iter().copied().collect();
         for &q in &plan.quads {
             self.alive_quad[q as usize] = false;
@@ -578,6 +608,7 @@ impl<'m, 'p> Cavities<'m, 'p> {
         self.alive_vertex.extend(std::iter::repeat_n(true, n_new));
         self.quads_of.extend(std::iter::repeat_n(Vec::new(), n_new));
         self.singular.extend(std::iter::repeat_n(None, n_new));
+        self.failed.extend(std::iter::repeat_n(None, n_new));
         for quad in &pattern.quads {
             let q = self.mesh.quads.len() as u32;
             self.mesh.quads.push(*quad);
