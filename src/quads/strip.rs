@@ -2,20 +2,23 @@
 //! split quads, so a face with a few free triangles becomes all-quad at the
 //! size asked for instead of being midpoint-subdivided whole.
 //!
-//! For two free triangles `t₁`, `t₂` of one model face, a shortest path of
-//! elements `t₁, q₁, …, q_k, t₂` across non-curve edges (breadth first, in
-//! element and corner order) is split at the midpoint of every edge it
-//! crosses:
+//! For two free triangles `t₁`, `t₂` of one model face, the shortest path
+//! of elements `t₁, q₁, …, q_k, t₂` across non-curve edges that crosses at
+//! least one quad between opposite edges (breadth first over element,
+//! entry edge and that flag, in element and corner order) is split at the
+//! midpoint of every edge it crosses:
 //! - `t₁` and `t₂` gain one midpoint on one edge: each becomes a quad;
 //! - each `qᵢ` gains two midpoints: a hexagon, cut into two quads along the
-//!   one of its three long diagonals that gives the better worst scaled
-//!   Jacobian (against the quad's own normal).
+//!   long diagonal from one of them, chosen by [`cuts`] so that every
+//!   midpoint ends a cut (a midpoint that ends none stays a flat corner).
 //!
 //! Every split element keeps its orientation and its neighbours across the
 //! split edges are the path's own elements, so the mesh stays conforming.
-//! The midpoints are irregular (valence 3); cavity remeshing removes them
-//! later. A free triangle with no partner in its face (odd count) is left
-//! for subdivision.
+//! The midpoints are then relaxed to their neighbours' centroid; a face
+//! where a strip still has a quad at or below [`MIN_SCALED_JACOBIAN`] has
+//! all its strips undone and is left to subdivision, as is a free triangle
+//! with no partner in its face (odd count). The midpoints' irregular
+//! vertices are removed later by cavity remeshing.
 
 use std::collections::{HashMap, HashSet, VecDeque};
 
