@@ -41,7 +41,7 @@ use std::time::Instant;
 
 use serde::Serialize;
 
-use super::cleanup::compact;
+use super::cleanup::{compact, quads_around_vertices};
 use super::projection::SurfaceProjector;
 use super::smooth::quad_scaled_jacobian;
 use super::surface_mesh::{ModelEntity, QuadMesh};
@@ -232,12 +232,7 @@ struct Pattern {
 impl<'m, 'p> Cavities<'m, 'p> {
     fn new(mesh: &'m mut QuadMesh, projector: &'p SurfaceProjector<'p>) -> Self {
         let n = mesh.vertices.len();
-        let mut quads_of = vec![Vec::new(); n];
-        for (qi, q) in mesh.quads.iter().enumerate() {
-            for &v in q {
-                quads_of[v as usize].push(qi as u32);
-            }
-        }
+        let quads_of = quads_around_vertices(mesh);
         let mut singular = vec![None; n];
         for &(v, index) in &mesh.singular_vertices {
             if let Some(s) = singular.get_mut(v as usize) {

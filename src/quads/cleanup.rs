@@ -104,12 +104,7 @@ struct Work<'m> {
 impl<'m> Work<'m> {
     fn new(mesh: &'m mut QuadMesh) -> Self {
         let n = mesh.vertices.len();
-        let mut quads_of = vec![Vec::new(); n];
-        for (qi, q) in mesh.quads.iter().enumerate() {
-            for &v in q {
-                quads_of[v as usize].push(qi as u32);
-            }
-        }
+        let quads_of = quads_around_vertices(mesh);
         let mut singular = vec![false; n];
         let mut ideal = ideal_quad_counts(mesh, &quads_of);
         for &(v, index) in &mesh.singular_vertices {
@@ -298,22 +293,28 @@ impl<'m> Work<'m> {
     }
 }
 
+/// The quads around each vertex of `mesh`, in quad order.
+pub(super) fn quads_around_vertices(mesh: &QuadMesh) -> Vec<Vec<u32>> {
+    let mut quads_of = vec![Vec::new(); mesh.vertices.len()];
+    for (qi, q) in mesh.quads.iter().enumerate() {
+        for &v in q {
+            quads_of[v as usize].push(qi as u32);
+        }
+    }
+    quads_of
+}
+
 /// Drops the quads and vertices of `mesh` whose flag is not set in
 /// `alive_quad` / `alive_vertex` (quads and vertices appended after the
 /// flags were made are kept) and renumbers every index list; the dead
 /// vertices leave the singular and seam lists. Any order-2 nodes are
 /// dropped (the steps that edit topology run before they are added).
 pub(super) fn compact(mesh: &mut QuadMesh, alive_vertex: &[bool], alive_quad: &[bool]) {
-    let vertex_alive = |v: usize| alive_vertex.get(v).copied().unwrap_or(true);
-    let mut new_index = vec![u32::MAX; mesh.vertices.len()];
-    let mut next = 0u32;
-    for (v, slot) in new_index.iter_mut().enumerate() {
-        if vertex_alive(v) {
-            *slot = next;
-            next += 1;
-        }
+    let flags: Vec<bool> = (0..mesh.vertices.len()).map(|v| alive_vertex.get(v).copied().unwrap_or(true)).collect();
+    let mut new_index = vec![u32::MAX; flags.len()];
+    for (next, (slot, _)) in new_index.iter_mut().zip(&flags).filter(|(_, alive)| **alive).enumerate() {
+        *slot = next as u32;
     }
-    let flags: Vec<bool> = (0..mesh.vertices.len()).map(vertex_alive).collect();
     let verts = &mut mesh.vertices;
     retain_alive(&mut verts.positions, &flags);
     retain_alive(&mut verts.on_surface, &flags);
