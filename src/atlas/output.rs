@@ -11,6 +11,10 @@
 //!   feature edges as line cells (cell data `feature_curve`; `-1` / NaN
 //!   where an array does not apply to a cell kind); point data
 //!   `curvature_max`, `curvature_min`, `direction_max`, `direction_min`.
+//!   The real-valued arrays are Float32: they are estimates (curvatures,
+//!   their directions, σ2/σ1) whose error is orders of magnitude above
+//!   `f32`'s 6·10⁻⁸, and a viewer gains nothing from Float64; the exact
+//!   values (curvature in `atlas.msh`) stay `f64`.
 //! - `atlas_uv.vtu`: every patch laid out in its own `(u, v)` plane as points
 //!   `(u, v, 0)`, seam vertices duplicated per patch; cell data `patch`.
 
@@ -102,14 +106,14 @@ pub fn write_atlas_vtu(atlas: &Atlas, w: impl Write) -> Result<(), WriteError> {
         points: &atlas.mesh.positions,
         cells: vec![CellBlock::Triangles(&atlas.mesh.triangles), CellBlock::Lines(&lines)],
         point_data: vec![
-            DataArray::f64("curvature_max", 1, c.curvature_max.as_slice()),
-            DataArray::f64("curvature_min", 1, c.curvature_min.as_slice()),
-            DataArray::vectors("direction_max", &c.direction_max),
-            DataArray::vectors("direction_min", &c.direction_min),
+            DataArray::f32_rounded("curvature_max", 1, &c.curvature_max),
+            DataArray::f32_rounded("curvature_min", 1, &c.curvature_min),
+            DataArray::vectors_f32("direction_max", &c.direction_max),
+            DataArray::vectors_f32("direction_min", &c.direction_min),
         ],
         cell_data: vec![
             DataArray::i32("patch", patch),
-            DataArray::f64("sigma_ratio", 1, sigma),
+            DataArray::f32_rounded("sigma_ratio", 1, &sigma),
             DataArray::i32("feature_curve", feature_curve),
         ],
     };

@@ -4,7 +4,8 @@
 //! # File layout
 //! `<VTKFile type="UnstructuredGrid" version="1.0" byte_order="LittleEndian"
 //! header_type="UInt64|UInt32">` with one `<Piece>` holding `<PointData>`,
-//! `<CellData>`, `<Points>` (Float64 × 3) and `<Cells>` (`connectivity`,
+//! `<CellData>`, `<Points>` (Float64 × 3, or Float32 × 3 when every
+//! coordinate is exactly an `f32`, e.g. from binary STL) and `<Cells>` (`connectivity`,
 //! `offsets` = end of each cell in `connectivity`, `types`). Connectivity and
 //! offsets are `Int32` when every index fits, `Int64` otherwise.
 //! Cell types: vertex 1, line 3, triangle 5, quad 9, tetra 10, biquadratic
@@ -223,6 +224,21 @@ impl<'a> DataArray<'a> {
         Self::f64(name, 3, flat)
     }
 
+    /// A `Float32` array rounded from `f64` values, for data whose precision
+    /// is far below `f32`'s (estimated curvatures, unit directions, ratios):
+    /// half the bytes of [`DataArray::f64`].
+    pub fn f32_rounded(name: impl Into<String>, n_components: usize, values: &[f64]) -> Self {
+        let v: Vec<f32> = values.iter().map(|&x| x as f32).collect();
+        Self { name: name.into(), n_components, values: DataValues::Float32(v.into()) }
+    }
+
+    /// A `Float32` array of 3-vectors rounded from `f64` (see
+    /// [`DataArray::f32_rounded`]).
+    pub fn vectors_f32(name: impl Into<String>, values: &[Vec3]) -> Self {
+        let flat: Vec<f32> = values.iter().flat_map(|v| [v.x as f32, v.y as f32, v.z as f32]).collect();
+        Self { name: name.into(), n_components: 3, values: DataValues::Float32(flat.into()) }
+    }
+
     /// An `Int32` scalar array.
     pub fn i32(name: impl Into<String>, values: impl Into<Cow<'a, [i32]>>) -> Self {
         Self { name: name.into(), n_components: 1, values: DataValues::Int32(values.into()) }
@@ -317,9 +333,13 @@ pub fn write_vtu(w: impl Write, mesh: &VtuMesh<'_>, opts: &VtuOptions) -> Result
     mesh.validate()?;
     let n_conn: usize = mesh.cells.iter().map(|b| b.indices().len()).sum();
     let wide = mesh.points.len() > i32::MAX as usize || n_conn > i32::MAX as usize;
+    let points_f32 = points_are_f32(mesh.points);
     if opts.header_type == VtuHeaderType::UInt32 && opts.encoding != VtuEncoding::Ascii {
-        let sources =
-            [Source::Points(mesh.points), Source::Connectivity(&mesh.cells, wide), Source::Offsets(&mesh.cells, wide)];
+        let sources = [
+            Source::Points(mesh.points, points_f32),
+            Source::Connectivity(&mesh.cells, wide),
+            Source::Offsets(&mesh.cells, wide),
+        ];
         let data = mesh.point_data.iter().chain(&mesh.cell_data).map(|a| Source::Values(&a.values));
         if let Some(n) = sources.into_iter().chain(data).map(|s| s.n_bytes()).find(|&n| n > u32::MAX as usize) {
             return Err(WriteError::TooLarge {
@@ -337,7 +357,8 @@ pub fn write_vtu(w: impl Write, mesh: &VtuMesh<'_>, opts: &VtuOptions) -> Result
             items.push((tag, Source::Values(&a.values), attrs(&a.name, a.values.vtk_name(), a.n_components)));
         }
     }
-    items.push(("Points", Source::Points(mesh.points), attrs("Points", "Float64", 3)));
+    let point_type = if points_f32 { "Float32" } else { "Float64" };
+    items.push(("Points", Source::Points(mesh.points, points_f32), attrs("Points", point_type, 3)));
     items.push(("Cells", Source::Connectivity(&mesh.cells, wide), attrs("connectivity", int, 1)));
     items.push(("Cells", Source::Offsets(&mesh.cells, wide), attrs("offsets", int, 1)));
     items.push(("Cells", Source::Types(&mesh.cells), attrs("types", "UInt8", 1)));
@@ -374,6 +395,17 @@ pub fn write_vtu(w: impl Write, mesh: &VtuMesh<'_>, opts: &VtuOptions) -> Result
     xml.appended()?;
     xml.text("</VTKFile>\n");
     xml.finish()
+}
+
+/// True when every coordinate is exactly representable as an `f32` (always
+/// so for a mesh read from binary STL, whose welded positions are the file's
+/// own `f32` values): the points are then stored as Float32, half the bytes
+/// and the same values for every reader. Points computed in `f64` (a tet
+/// mesh's interior nodes, OBJ or PLY doubles, coordinates far from the
+/// origin) keep Float64, so no precision is ever lost.
+fn points_are_f32(points: &[Vec3]) -> bool {
+    use rayon::prelude::*;
+    points.par_iter().all(|p| p.iter().all(|&c| f64::from(c as f32) == c))
 }
 
 /// Bytes an array takes in the raw appended block: its header and data,
@@ -468,8 +500,9 @@ fn attrs(name: &str, ty: &str, n_components: usize) -> String {
 
 /// One array's values, produced on the fly (no full copy of big arrays).
 enum Source<'a> {
-    /// Point coordinates as Float64.
-    Points(&'a [Vec3]),
+    /// Point coordinates as Float64, or as Float32 when `true` (only when
+    /// every coordinate is exactly an `f32`, see [`points_are_f32`]).
+    Points(&'a [Vec3], bool),
     /// Concatenated cell indices; `true` = Int64.
     Connectivity(&'a [CellBlock<'a>], bool),
     /// End offset of each cell; `true` = Int64.
@@ -491,7 +524,7 @@ impl Source<'_> {
     /// Size in bytes of the binary data.
     fn n_bytes(&self) -> usize {
         match self {
-            Self::Points(p) => 24 * p.len(),
+            Self::Points(p, single) => (if *single { 12 } else { 24 }) * p.len(),
             Self::Connectivity(c, wide) => {
                 c.iter().map(|b| b.indices().len()).sum::<usize>() * if *wide { 8 } else { 4 }
             }
@@ -512,9 +545,14 @@ impl Source<'_> {
     /// and the value. Stops at the first error.
     fn for_each<E>(&self, mut f: impl FnMut(&[u8], Scalar) -> Result<(), E>) -> Result<(), E> {
         match self {
-            Self::Points(p) => {
+            Self::Points(p, false) => {
                 for x in p.iter().flat_map(|v| [v.x, v.y, v.z]) {
                     f(&x.to_le_bytes(), Scalar::F(x))?;
+                }
+            }
+            Self::Points(p, true) => {
+                for x in p.iter().flat_map(|v| [v.x, v.y, v.z]) {
+                    f(&(x as f32).to_le_bytes(), Scalar::F(x))?;
                 }
             }
             Self::Connectivity(cells, wide) => {
@@ -554,7 +592,7 @@ impl Source<'_> {
 
     /// Float32 values are written as text from their `f32` shortest form.
     fn is_f32(&self) -> bool {
-        matches!(self, Self::Values(DataValues::Float32(_)))
+        matches!(self, Self::Values(DataValues::Float32(_)) | Self::Points(_, true))
     }
 }
 
@@ -802,6 +840,27 @@ mod tests {
         let header = B64.decode(&s[..8]).unwrap();
         assert_eq!(header, 2u32.to_le_bytes());
         assert_eq!(B64.decode(&s[8..]).unwrap(), [5, 5]);
+        // The square's coordinates are exact in `f32`: 4 points × 3 × 4 bytes.
+        let p = array_text(&text, "Points");
+        assert_eq!(B64.decode(&p[..8]).unwrap(), 48u32.to_le_bytes());
+        let xyz: Vec<f64> = B64
+            .decode(&p[8..])
+            .unwrap()
+            .chunks_exact(4)
+            .map(|c| f64::from(f32::from_le_bytes(c.try_into().unwrap())))
+            .collect();
+        assert_eq!(xyz, m.positions.iter().flat_map(|p| [p.x, p.y, p.z]).collect::<Vec<_>>());
+    }
+
+    #[test]
+    fn points_are_float64_unless_every_coordinate_is_an_f32() {
+        let mut m = fixtures::square(1);
+        let text = String::from_utf8(write(&sample(&m), VtuEncoding::Ascii, VtuHeaderType::UInt32)).unwrap();
+        assert!(text.contains("type=\"Float32\" Name=\"Points\""));
+        // 0.1 is not an f32: one such coordinate keeps every point in Float64, exactly.
+        m.positions[2].x = 0.1;
+        let text = String::from_utf8(write(&sample(&m), VtuEncoding::Base64, VtuHeaderType::UInt32)).unwrap();
+        assert!(text.contains("type=\"Float64\" Name=\"Points\""));
         let p = array_text(&text, "Points");
         assert_eq!(B64.decode(&p[..8]).unwrap(), 96u32.to_le_bytes());
         let xyz: Vec<f64> =
@@ -821,7 +880,9 @@ mod tests {
             .map(|(i, _)| head[i + 8..].split('"').next().unwrap().parse().unwrap())
             .collect();
         assert_eq!(offsets.len(), 6);
-        let expected_sizes = [24 * 9, 4 * 8, 24 * 9, 4 * 24, 4 * 8, 8];
+        // `normal` (the positions as f64 data), patch, Points (exact in f32:
+        // 12 bytes each), connectivity, offsets, types.
+        let expected_sizes = [24 * 9, 4 * 8, 12 * 9, 4 * 24, 4 * 8, 8];
         for (o, n) in offsets.iter().zip(expected_sizes) {
             let h = u64::from_le_bytes(bytes[start + o..start + o + 8].try_into().unwrap());
             assert_eq!(h as usize, n);
