@@ -431,10 +431,43 @@ fn appended_len(src: &Source<'_>, payload: Option<&Compressed>, header64: bool) 
 /// headers, and 128 KiB blocks still let every core compress its share.
 const ZLIB_BLOCK: usize = 128 * 1024;
 
-/// zlib level of compressed arrays: 1 compresses mesh arrays nearly as well
-/// as 6 (coordinates and indices are poorly compressible beyond their
-/// repeated high bytes) at several times the speed.
-const ZLIB_LEVEL: u32 = 1;
+/// Bytes of an array's start on which its deflate settings are chosen.
+const SAMPLE: usize = 32 * 1024;
+
+/// An array is coded with matching at level 2 only when that shrinks its
+/// sample to this fraction of the better fast coding or less: level 2
+/// takes about twice the time of the fast codings.
+const LEVEL2_GAIN: f64 = 0.75;
+
+/// The deflate settings of one array, chosen on its first [`SAMPLE`]
+/// bytes among three zlib-rs codings (measured in `docs/decisions.md`):
+/// level 1 (matching with static Huffman tables: fastest on indices and
+/// coordinates, but it expands noisy floats), Huffman-only (dynamic tables
+/// without matching: fastest and smallest on noisy floats) and level 2
+/// (matching with dynamic tables: half the size of level 1 on
+/// connectivity, at twice its time). Every choice is a plain zlib stream
+/// that every inflater reads, and it depends on the bytes alone.
+fn deflate_config(sample: &[u8]) -> Result<zlib_rs::DeflateConfig, WriteError> {
+    let level1 = zlib_rs::DeflateConfig::new(1);
+    let huffman = zlib_rs::DeflateConfig { strategy: zlib_rs::Strategy::HuffmanOnly, ..zlib_rs::DeflateConfig::new(2) };
+    let level2 = zlib_rs::DeflateConfig::new(2);
+    let size = |c| deflate_block(sample, c).map(|z| z.len() as f64);
+    let (s1, sh) = (size(level1)?, size(huffman)?);
+    let (fast, fast_size) = if s1 <= sh { (level1, s1) } else { (huffman, sh) };
+    Ok(if size(level2)? <= LEVEL2_GAIN * fast_size { level2 } else { fast })
+}
+
+/// One zlib stream of `block`.
+fn deflate_block(block: &[u8], config: zlib_rs::DeflateConfig) -> Result<Vec<u8>, WriteError> {
+    let mut out = vec![0u8; zlib_rs::compress_bound(block.len())];
+    let (written, rc) = zlib_rs::compress_slice(&mut out, block, config);
+    if rc != zlib_rs::ReturnCode::Ok {
+        return Err(std::io::Error::other(format!("zlib compression failed ({rc:?})")).into());
+    }
+    let n = written.len();
+    out.truncate(n);
+    Ok(out)
+}
 
 /// One array in VTK's compressed layout: the header
 /// `[n_blocks, block_size, last_partial_block_size, compressed_size…]`
@@ -445,10 +478,10 @@ struct Compressed {
     data: Vec<u8>,
 }
 
-/// Compresses `src` in [`ZLIB_BLOCK`]-sized blocks, in parallel; the bytes
-/// do not depend on the number of threads.
+/// Compresses `src` in [`ZLIB_BLOCK`]-sized blocks, in parallel, with the
+/// settings [`deflate_config`] chooses; the bytes do not depend on the
+/// number of threads.
 fn compress_array(src: &Source<'_>, header64: bool) -> Result<Compressed, WriteError> {
-    use flate2::{Compression, write::ZlibEncoder};
     use rayon::prelude::*;
     let mut raw = Vec::with_capacity(src.n_bytes());
     src.for_each(|bytes, _| -> Result<(), std::convert::Infallible> {
@@ -456,14 +489,9 @@ fn compress_array(src: &Source<'_>, header64: bool) -> Result<Compressed, WriteE
         Ok(())
     })
     .unwrap_or_else(|never| match never {});
-    let blocks: Vec<Vec<u8>> = raw
-        .par_chunks(ZLIB_BLOCK)
-        .map(|chunk| {
-            let mut e = ZlibEncoder::new(Vec::with_capacity(chunk.len() / 2 + 64), Compression::new(ZLIB_LEVEL));
-            e.write_all(chunk)?;
-            e.finish()
-        })
-        .collect::<std::io::Result<_>>()?;
+    let config = deflate_config(&raw[..raw.len().min(SAMPLE)])?;
+    let blocks: Vec<Vec<u8>> =
+        raw.par_chunks(ZLIB_BLOCK).map(|chunk| deflate_block(chunk, config)).collect::<Result<_, _>>()?;
     let mut ints = vec![blocks.len(), ZLIB_BLOCK, raw.len() % ZLIB_BLOCK];
     ints.extend(blocks.iter().map(Vec::len));
     let mut header = Vec::with_capacity(ints.len() * 8);
@@ -911,6 +939,32 @@ mod tests {
             String::from_utf8(write(&VtuMesh::from_volume(&tets), VtuEncoding::Ascii, VtuHeaderType::UInt64)).unwrap();
         assert_eq!(array_text(&ascii, "types"), "10");
         assert_eq!(array_text(&ascii, "offsets"), "4");
+    }
+
+    #[test]
+    fn each_array_is_coded_as_its_sample_favours_and_inflates_back() {
+        use rand::{Rng, SeedableRng};
+        use std::io::Read;
+        let mut rng = rand::rngs::StdRng::seed_from_u64(5);
+        let bytes = |v: Vec<u32>| v.into_iter().flat_map(u32::to_le_bytes).collect::<Vec<u8>>();
+        // Unit-vector-like floats: matching finds nothing, Huffman coding the
+        // exponent bytes does.
+        let noisy = bytes((0..100_000).map(|_| rng.random_range(-1.0f32..1.0).to_bits()).collect());
+        // Strip connectivity (i, i+1, i+2): long repeats, which level 2 matches.
+        let strip = bytes((0..100_000u32).flat_map(|i| [i, i + 1, i + 2]).collect());
+        let noisy_config = deflate_config(&noisy[..SAMPLE]).unwrap();
+        assert_eq!(noisy_config.strategy, zlib_rs::Strategy::HuffmanOnly);
+        let strip_config = deflate_config(&strip[..SAMPLE]).unwrap();
+        assert_eq!((strip_config.level, strip_config.strategy), (2, zlib_rs::Strategy::Default));
+        for (data, config) in [(&noisy, noisy_config), (&strip, strip_config), (&strip, zlib_rs::DeflateConfig::new(1))]
+        {
+            let block = &data[..ZLIB_BLOCK];
+            let z = deflate_block(block, config).unwrap();
+            let mut back = Vec::new();
+            flate2::read::ZlibDecoder::new(&z[..]).read_to_end(&mut back).unwrap();
+            assert_eq!(back, block);
+        }
+        assert!(deflate_block(&noisy[..ZLIB_BLOCK], noisy_config).unwrap().len() < ZLIB_BLOCK * 95 / 100);
     }
 
     #[test]
