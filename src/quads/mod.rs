@@ -30,6 +30,7 @@ pub mod cleanup;
 pub mod curves;
 pub mod error;
 pub mod fixtures;
+pub mod flips;
 pub mod insertion;
 pub mod jacobian;
 pub mod matching;

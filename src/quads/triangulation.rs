@@ -24,6 +24,7 @@ use spade::{ConstrainedDelaunayTriangulation, Point2, Triangulation as _};
 
 use super::curves::{BoundaryMesh, discretize_boundaries};
 use super::error::QuadsError;
+use super::flips::{FlipGeometry, flip_toward_surface_shape};
 use super::insertion::{ChartPoint, insert_points};
 use super::model::QuadModel;
 use super::parity::ParityStats;
@@ -208,8 +209,21 @@ fn triangulate_patch(
 
     let direct = patch_is_direct(&chart, patch);
     // Delaunay in (u, v) is not Delaunay in 3D: where the chart distorts, a
-    // triangle may fold over in 3D; its interior points are dropped and the
-    // patch triangulated again (a few rounds).
+    // triangle may fold over in 3D. Edges next to a fold are flipped where
+    // that repairs it ([`flip_toward_surface_shape`]); the interior points of
+    // a triangle still folded are dropped and the patch triangulated again
+    // (a few rounds).
+    let uv: Vec<Vec2> = points.iter().map(|p| p.uv).collect();
+    let position: Vec<Vec3> = points.iter().map(|p| chart.position(p.tri, &p.bary)).collect();
+    let orientation = if direct { 1.0 } else { -1.0 };
+    let normal_at = |c: &Vec2| {
+        chart
+            .locate_near(c)
+            .map_or_else(Vec3::zeros, |(lt, _)| surface.face_normal(chart.source_face(lt)) * orientation)
+    };
+    let geometry = FlipGeometry { uv: &uv, position: &position, normal_at: &normal_at };
+    let constrained: HashSet<(usize, usize)> = segments.iter().map(|&[a, b]| (a.min(b), a.max(b))).collect();
+    let is_constrained = |a: usize, b: usize| constrained.contains(&(a.min(b), a.max(b)));
     let mut removed = vec![false; points.len()];
     let mut kept = Vec::new();
     for _ in 0..4 {
@@ -220,6 +234,7 @@ fn triangulate_patch(
             .into_iter()
             .map(|t| t.map(|v| active[v]))
             .collect();
+        flip_toward_surface_shape(&geometry, &mut kept, &is_constrained);
         let mut again = false;
         for t in &kept {
             if !is_upright(&chart, surface, &points, t, direct) {

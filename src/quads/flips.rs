@@ -1,0 +1,220 @@
+//! Edge flips of a patch triangulation toward good triangles on the surface.
+//!
+//! The triangulation of step 3 is Delaunay in the patch's `(u, v)` plane,
+//! which is not Delaunay on the surface: where the chart stretches one way
+//! more than the other (mean value maps do near a patch's boundary), the
+//! `(u, v)` circumcircle test can pick the diagonal that is short in
+//! `(u, v)` and long in 3D, and a triangle folds over the surface (its
+//! normal against the surface's). Gmsh meets the same problem with a metric
+//! in the parametric plane; here the folds are repaired afterwards by flips
+//! judged in 3D.
+//!
+//! An interior edge is flipped when one of its two triangles is folded
+//! (signed shape ≤ 0, [`signed_shape`]), the two new triangles are
+//! counter-clockwise in `(u, v)` (so the triangulation stays embedded in
+//! the chart), and the worse of the two improves, to at least
+//! [`MIN_SHAPE_MADE`]. Only folds are repaired: flipping upright slivers
+//! too changed the meshes of inputs that were already right and made a
+//! degenerate quad on one (`docs/decisions.md`). Constrained edges (the
+//! patch boundary) are never flipped. Every flip raises the pair's
+//! minimum, and the pass is bounded, so it ends; it depends on the
+//! triangles' order only, which is the triangulation's (deterministic).
+
+use std::collections::HashMap;
+
+use crate::geom::{Vec2, Vec3};
+
+/// The geometry the flips are judged on, per chart point.
+pub struct FlipGeometry<'a> {
+    /// `(u, v)` of every point.
+    pub uv: &'a [Vec2],
+    /// 3D position of every point.
+    pub position: &'a [Vec3],
+    /// Surface normal at a `(u, v)` location of the chart, oriented so that a
+    /// triangle counter-clockwise in `(u, v)` faces it when upright.
+    pub normal_at: &'a dyn Fn(&Vec2) -> Vec3,
+}
+
+/// Flips made at most per triangle (a bound that real inputs never reach;
+/// it keeps a pathological chart from looping).
+const MAX_FLIPS_PER_TRIANGLE: usize = 8;
+
+/// Smallest [`signed_shape`] a flip may make: a flip that would turn a
+/// folded pair into a degenerate one (three points of a straight curve,
+/// say) is not made, so the fold stays visible to the caller.
+const MIN_SHAPE_MADE: f64 = 0.01;
+
+/// Signed shape of the 3D triangle `(a, b, c)` against the normal `n`:
+/// `2√3 ((b − a) × (c − a)) · n / (|ab|² + |bc|² + |ca|²)`, which is 1 for an
+/// equilateral triangle facing `n`, near 0 for a sliver and negative for a
+/// triangle folded against `n`.
+pub fn signed_shape(a: &Vec3, b: &Vec3, c: &Vec3, n: &Vec3) -> f64 {
+    let sum = (b - a).norm_squared() + (c - b).norm_squared() + (a - c).norm_squared();
+    if sum <= 0.0 {
+        return 0.0;
+    }
+    2.0 * 3f64.sqrt() * (b - a).cross(&(c - a)).dot(n) / sum
+}
+
+/// Twice the signed area of `(a, b, c)` in `(u, v)`.
+fn orient(a: &Vec2, b: &Vec2, c: &Vec2) -> f64 {
+    (b.x - a.x) * (c.y - a.y) - (b.y - a.y) * (c.x - a.x)
+}
+
+/// The vertex of `t` opposite the directed edge `a → b`, when `t` has it.
+fn opposite(t: &[usize; 3], a: usize, b: usize) -> Option<usize> {
+    (0..3).find(|&i| t[i] == a && t[(i + 1) % 3] == b).map(|i| t[(i + 2) % 3])
+}
+
+/// Flips edges of `triangles` (counter-clockwise in `(u, v)`, indexing the
+/// points of `geometry`) next to a folded triangle whose flip improves the
+/// worse triangle of the pair in 3D (module doc); `is_constrained` names the edges that must stay.
+/// Returns the number of flips.
+pub fn flip_toward_surface_shape(
+    geometry: &FlipGeometry<'_>,
+    triangles: &mut [[usize; 3]],
+    is_constrained: &dyn Fn(usize, usize) -> bool,
+) -> usize {
+    let key = |a: usize, b: usize| (a.min(b), a.max(b));
+    let mut faces_of: HashMap<(usize, usize), Vec<usize>> = HashMap::new();
+    for (f, t) in triangles.iter().enumerate() {
+        for i in 0..3 {
+            faces_of.entry(key(t[i], t[(i + 1) % 3])).or_default().push(f);
+        }
+    }
+    let mut stack: Vec<(usize, usize)> = faces_of.keys().copied().collect();
+    stack.sort_unstable();
+    stack.reverse();
+    let shape = |a: usize, b: usize, c: usize, n: &Vec3| {
+        signed_shape(&geometry.position[a], &geometry.position[b], &geometry.position[c], n)
+    };
+    let budget = MAX_FLIPS_PER_TRIANGLE * triangles.len();
+    let mut n_flips = 0;
+    while let Some((p, q)) = stack.pop() {
+        if n_flips >= budget {
+            break;
+        }
+        let Some(faces) = faces_of.get(&(p, q)) else { continue };
+        if faces.len() != 2 || is_constrained(p, q) {
+            continue;
+        }
+        let (f1, f2) = (faces[0], faces[1]);
+        // Orient the pair as t1 = (a, b, c), t2 = (b, a, d).
+        let (a, b) = if opposite(&triangles[f1], p, q).is_some() { (p, q) } else { (q, p) };
+        let (Some(c), Some(d)) = (opposite(&triangles[f1], a, b), opposite(&triangles[f2], b, a)) else { continue };
+        let uv = geometry.uv;
+        if c == d || orient(&uv[a], &uv[d], &uv[c]) <= 0.0 || orient(&uv[d], &uv[b], &uv[c]) <= 0.0 {
+            continue;
+        }
+        let n = (geometry.normal_at)(&((uv[a] + uv[b]) * 0.5));
+        let before = shape(a, b, c, &n).min(shape(b, a, d, &n));
+        let after = shape(a, d, c, &n).min(shape(d, b, c, &n));
+        if before > 0.0 || after <= before + 1e-9 || after < MIN_SHAPE_MADE {
+            continue;
+        }
+        triangles[f1] = [a, d, c];
+        triangles[f2] = [d, b, c];
+        faces_of.remove(&key(a, b));
+        faces_of.insert(key(c, d), vec![f1, f2]);
+        for (edge, from, to) in [(key(b, c), f1, f2), (key(a, d), f2, f1)] {
+            if let Some(fs) = faces_of.get_mut(&edge) {
+                fs.iter_mut().filter(|f| **f == from).for_each(|f| *f = to);
+            }
+        }
+        stack.extend([key(a, d), key(d, b), key(b, c), key(c, a)]);
+        n_flips += 1;
+    }
+    n_flips
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// A unit square in `(u, v)` whose corner 2 sits, on the surface, at
+    /// (0.2, 0.2): the diagonal 1–3 then folds the triangle (1, 2, 3) over
+    /// the surface (normal +z), the diagonal 0–2 does not.
+    fn dented_square() -> (Vec<Vec2>, Vec<Vec3>) {
+        let uv = vec![Vec2::new(0.0, 0.0), Vec2::new(1.0, 0.0), Vec2::new(1.0, 1.0), Vec2::new(0.0, 1.0)];
+        let position = vec![
+            Vec3::new(0.0, 0.0, 0.0),
+            Vec3::new(1.0, 0.0, 0.0),
+            Vec3::new(0.2, 0.2, 0.0),
+            Vec3::new(0.0, 1.0, 0.0),
+        ];
+        (uv, position)
+    }
+
+    fn worst(tris: &[[usize; 3]], position: &[Vec3]) -> f64 {
+        tris.iter()
+            .map(|t| signed_shape(&position[t[0]], &position[t[1]], &position[t[2]], &Vec3::z()))
+            .fold(f64::INFINITY, f64::min)
+    }
+
+    #[test]
+    fn shape_is_one_for_equilateral_and_changes_sign_with_the_normal() {
+        let (a, b, c) = (Vec3::zeros(), Vec3::x(), Vec3::new(0.5, 3f64.sqrt() / 2.0, 0.0));
+        assert!((signed_shape(&a, &b, &c, &Vec3::z()) - 1.0).abs() < 1e-12);
+        assert!((signed_shape(&a, &b, &c, &-Vec3::z()) + 1.0).abs() < 1e-12);
+        assert_eq!(signed_shape(&a, &a, &a, &Vec3::z()), 0.0);
+    }
+
+    #[test]
+    fn a_folded_pair_is_flipped_to_the_diagonal_that_follows_the_surface() {
+        let (uv, position) = dented_square();
+        let up = |_: &Vec2| Vec3::z();
+        let geometry = FlipGeometry { uv: &uv, position: &position, normal_at: &up };
+        let mut tris = vec![[0, 1, 3], [1, 2, 3]];
+        assert!(worst(&tris, &position) < 0.0);
+        assert_eq!(flip_toward_surface_shape(&geometry, &mut tris, &|_, _| false), 1);
+        assert!(worst(&tris, &position) > 0.0);
+        let mut sorted: Vec<[usize; 3]> = tris
+            .iter()
+            .map(|t| {
+                let mut t = *t;
+                t.sort_unstable();
+                t
+            })
+            .collect();
+        sorted.sort_unstable();
+        assert_eq!(sorted, [[0, 1, 2], [0, 2, 3]]);
+        for t in &tris {
+            assert!(orient(&uv[t[0]], &uv[t[1]], &uv[t[2]]) > 0.0, "{t:?} stays counter-clockwise in (u, v)");
+        }
+        // Already the better diagonal: nothing to do.
+        assert_eq!(flip_toward_surface_shape(&geometry, &mut tris, &|_, _| false), 0);
+    }
+
+    #[test]
+    fn upright_slivers_are_left_alone() {
+        // A kite whose long diagonal 0–2 makes two upright slivers: no fold, no flip.
+        let position = vec![
+            Vec3::new(0.0, 0.0, 0.0),
+            Vec3::new(1.0, -0.1, 0.0),
+            Vec3::new(2.0, 0.0, 0.0),
+            Vec3::new(1.0, 0.1, 0.0),
+        ];
+        let uv: Vec<Vec2> = position.iter().map(|p| Vec2::new(p.x, p.y)).collect();
+        let up = |_: &Vec2| Vec3::z();
+        let geometry = FlipGeometry { uv: &uv, position: &position, normal_at: &up };
+        let mut tris = vec![[0, 1, 2], [0, 2, 3]];
+        assert!(worst(&tris, &position) > 0.0);
+        assert_eq!(flip_toward_surface_shape(&geometry, &mut tris, &|_, _| false), 0);
+    }
+
+    #[test]
+    fn constrained_edges_and_nonconvex_pairs_stay() {
+        let (uv, position) = dented_square();
+        let up = |_: &Vec2| Vec3::z();
+        let geometry = FlipGeometry { uv: &uv, position: &position, normal_at: &up };
+        let mut tris = vec![[0, 1, 3], [1, 2, 3]];
+        let constrained = |a: usize, b: usize| (a.min(b), a.max(b)) == (1, 3);
+        assert_eq!(flip_toward_surface_shape(&geometry, &mut tris, &constrained), 0);
+        // Corner 1 moved in (u, v) so that the pair is not convex there: the
+        // triangle (0, 1, 2) of the flip would be clockwise.
+        let uv = vec![uv[0], Vec2::new(0.3, 0.35), uv[2], uv[3]];
+        let geometry = FlipGeometry { uv: &uv, position: &position, normal_at: &up };
+        let mut tris = vec![[0, 1, 3], [1, 2, 3]];
+        assert_eq!(flip_toward_surface_shape(&geometry, &mut tris, &|_, _| false), 0);
+    }
+}
