@@ -68,8 +68,8 @@ fn opposite(t: &[usize; 3], a: usize, b: usize) -> Option<usize> {
 
 /// Flips edges of `triangles` (counter-clockwise in `(u, v)`, indexing the
 /// points of `geometry`) next to a folded triangle whose flip improves the
-/// worse triangle of the pair in 3D (module doc); `is_constrained` names the edges that must stay.
-/// Returns the number of flips.
+/// worse triangle of the pair in 3D (module doc); `is_constrained` names
+/// the edges that must stay. Returns the number of flips.
 pub fn flip_toward_surface_shape(
     geometry: &FlipGeometry<'_>,
     triangles: &mut [[usize; 3]],

@@ -7,7 +7,8 @@
 //! definition measured against the surface instead of the quad's own
 //! plane, so a quad folded over relative to the surface is negative). It is
 //! 1 for a square, ≤ 0 for an inverted or degenerate corner; the quad's value
-//! is the minimum over its corners.
+//! is the minimum over its corners. A surface quad is also measured against
+//! its own normals ([`surface_quad_scaled_jacobian`]), Gmsh's among them.
 
 use super::surface_mesh::{ModelEntity, SurfaceVertices};
 use crate::geom::Vec3;
@@ -45,17 +46,26 @@ pub fn max_angle_deviation_deg(p: &[Vec3; 4]) -> f64 {
 }
 
 /// Scaled Jacobian of the surface quad `p`: the worst of its scaled
-/// Jacobian against the surface normal `n` under it and against its own
-/// centre normal (the cross product of its diagonals), so a quad folded
-/// across a crease counts as inverted even when each corner agrees with
-/// the surface under it.
+/// Jacobian against the surface normal `n` under it, against its own
+/// centre normal (the cross product of its diagonals), and against the
+/// normal of each of its four corner triangles `(p_i, p_{i+1}, p_{i+2})`.
+/// The centre normal makes a quad folded across a crease count as inverted
+/// even when each corner agrees with the surface under it. The corner
+/// triangles are what Gmsh measures a surface quad against (`MFace::normal`,
+/// the plane of its first three nodes, in `minSICN`): a warped quad can be
+/// positive against its centre normal and negative against one of them,
+/// which Gmsh rates inverted when the quad is written from that corner.
+/// Every rotation is checked, so no order the quad is written in fails.
 pub fn surface_quad_scaled_jacobian(p: &[Vec3; 4], n: &Vec3) -> f64 {
     let own = (p[2] - p[0]).cross(&(p[3] - p[1]));
-    let against_surface = scaled_jacobian(p, n);
-    match own.try_normalize(0.0) {
-        Some(own) => against_surface.min(scaled_jacobian(p, &own)),
-        None => against_surface.min(0.0),
+    let mut worst = scaled_jacobian(p, n);
+    for normal in std::iter::once(own).chain((0..4).map(|i| (p[(i + 1) % 4] - p[i]).cross(&(p[(i + 2) % 4] - p[i])))) {
+        worst = match normal.try_normalize(0.0) {
+            Some(unit) => worst.min(scaled_jacobian(p, &unit)),
+            None => worst.min(0.0),
+        };
     }
+    worst
 }
 
 /// Unit normal of the input surface under quad `quad` of `vertices`: the
@@ -100,6 +110,28 @@ mod tests {
         // A bow tie (corners 2 and 3 swapped): its diagonals are parallel, no own normal.
         let bow = [square[0], square[1], square[3], square[2]];
         assert!(surface_quad_scaled_jacobian(&bow, &z) <= 0.0);
+    }
+
+    #[test]
+    fn a_warped_quad_is_measured_against_every_corner_triangle_as_gmsh_would() {
+        // plate_holes.stl, quad [59, 1207, 1208, 1206]: corner angles 30°,
+        // 132°, 37°, 131°. Against its centre normal every corner is about
+        // 0.5; against the plane of its first three corners (Gmsh's
+        // reference) corner 3 is −0.001, and Gmsh rated it minSICN −0.70.
+        let p = [
+            Vec3::new(121.16467687, 304.80001831, 12.69999981),
+            Vec3::new(124.66052544, 304.80001831, 6.57548487),
+            Vec3::new(123.88373875, 300.93843083, 0.56635135),
+            Vec3::new(121.07025125, 304.34934742, 4.14089334),
+        ];
+        let centre = (p[2] - p[0]).cross(&(p[3] - p[1])).normalize();
+        assert!(scaled_jacobian(&p, &centre) > 0.48);
+        let first_three = (p[1] - p[0]).cross(&(p[2] - p[0])).normalize();
+        assert!(corner_scaled_jacobians(&p, &first_three)[3] < 0.0);
+        assert!(surface_quad_scaled_jacobian(&p, &centre) < 0.0);
+        // A planar convex quad is unaffected.
+        let z = Vec3::z();
+        assert!((surface_quad_scaled_jacobian(&square(), &z) - 1.0).abs() < 1e-12);
     }
 
     #[test]
