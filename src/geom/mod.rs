@@ -24,3 +24,11 @@ pub type Vec2 = nalgebra::Vector2<f64>;
 pub fn orient2d(a: &Vec2, b: &Vec2, c: &Vec2) -> f64 {
     (b.x - a.x) * (c.y - a.y) - (b.y - a.y) * (c.x - a.x)
 }
+
+/// True when every coordinate of `points` is exactly an `f32` (always the
+/// case for binary STL input): such points can be keyed and stored in 32
+/// bits with nothing rounded.
+pub fn every_coordinate_is_f32(points: &[Vec3]) -> bool {
+    use rayon::prelude::*;
+    points.par_iter().all(|p| p.iter().all(|&c| f64::from(c as f32) == c))
+}

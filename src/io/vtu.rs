@@ -333,7 +333,12 @@ pub fn write_vtu(w: impl Write, mesh: &VtuMesh<'_>, opts: &VtuOptions) -> Result
     mesh.validate()?;
     let n_conn: usize = mesh.cells.iter().map(|b| b.indices().len()).sum();
     let wide = mesh.points.len() > i32::MAX as usize || n_conn > i32::MAX as usize;
-    let points_f32 = points_are_f32(mesh.points);
+    // Float32 points when every coordinate is exactly an `f32` (always so for
+    // a mesh read from binary STL): half the bytes, the same values for every
+    // reader. Points computed in `f64` (a tet mesh's interior nodes, OBJ or
+    // PLY doubles, coordinates far from the origin) keep Float64, so no
+    // precision is ever lost.
+    let points_f32 = crate::geom::every_coordinate_is_f32(mesh.points);
     if opts.header_type == VtuHeaderType::UInt32 && opts.encoding != VtuEncoding::Ascii {
         let sources = [
             Source::Points(mesh.points, points_f32),
@@ -395,17 +400,6 @@ pub fn write_vtu(w: impl Write, mesh: &VtuMesh<'_>, opts: &VtuOptions) -> Result
     xml.appended()?;
     xml.text("</VTKFile>\n");
     xml.finish()
-}
-
-/// True when every coordinate is exactly representable as an `f32` (always
-/// so for a mesh read from binary STL, whose welded positions are the file's
-/// own `f32` values): the points are then stored as Float32, half the bytes
-/// and the same values for every reader. Points computed in `f64` (a tet
-/// mesh's interior nodes, OBJ or PLY doubles, coordinates far from the
-/// origin) keep Float64, so no precision is ever lost.
-fn points_are_f32(points: &[Vec3]) -> bool {
-    use rayon::prelude::*;
-    points.par_iter().all(|p| p.iter().all(|&c| f64::from(c as f32) == c))
 }
 
 /// Bytes an array takes in the raw appended block: its header and data,
@@ -529,7 +523,7 @@ fn attrs(name: &str, ty: &str, n_components: usize) -> String {
 /// One array's values, produced on the fly (no full copy of big arrays).
 enum Source<'a> {
     /// Point coordinates as Float64, or as Float32 when `true` (only when
-    /// every coordinate is exactly an `f32`, see [`points_are_f32`]).
+    /// every coordinate is exactly an `f32`, see [`crate::geom::every_coordinate_is_f32`]).
     Points(&'a [Vec3], bool),
     /// Concatenated cell indices; `true` = Int64.
     Connectivity(&'a [CellBlock<'a>], bool),

@@ -145,8 +145,7 @@ fn exact_key_f32(p: &Vec3) -> [u32; 3] {
 /// grouping moves every key twice, so half the key is less memory traffic,
 /// with the same answer.
 pub fn weld_exact(positions: &[Vec3]) -> (Vec<u32>, Vec<Vec3>) {
-    let all_f32 = positions.par_iter().all(|p| p.iter().all(|&c| f64::from(c as f32) == c));
-    let first = if all_f32 {
+    let first = if crate::geom::every_coordinate_is_f32(positions) {
         first_index_of_equal_key(positions.len(), |i| Words(exact_key_f32(&positions[i])))
     } else {
         first_index_of_equal_key(positions.len(), |i| Words(exact_key(&positions[i])))

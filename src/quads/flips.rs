@@ -22,7 +22,7 @@
 
 use std::collections::HashMap;
 
-use crate::geom::{Vec2, Vec3};
+use crate::geom::{Vec2, Vec3, orient2d};
 
 /// The geometry the flips are judged on, per chart point.
 pub struct FlipGeometry<'a> {
@@ -54,11 +54,6 @@ pub fn signed_shape(a: &Vec3, b: &Vec3, c: &Vec3, n: &Vec3) -> f64 {
         return 0.0;
     }
     2.0 * 3f64.sqrt() * (b - a).cross(&(c - a)).dot(n) / sum
-}
-
-/// Twice the signed area of `(a, b, c)` in `(u, v)`.
-fn orient(a: &Vec2, b: &Vec2, c: &Vec2) -> f64 {
-    (b.x - a.x) * (c.y - a.y) - (b.y - a.y) * (c.x - a.x)
 }
 
 /// The vertex of `t` opposite the directed edge `a → b`, when `t` has it.
@@ -103,7 +98,7 @@ pub fn flip_toward_surface_shape(
         let (a, b) = if opposite(&triangles[f1], p, q).is_some() { (p, q) } else { (q, p) };
         let (Some(c), Some(d)) = (opposite(&triangles[f1], a, b), opposite(&triangles[f2], b, a)) else { continue };
         let uv = geometry.uv;
-        if c == d || orient(&uv[a], &uv[d], &uv[c]) <= 0.0 || orient(&uv[d], &uv[b], &uv[c]) <= 0.0 {
+        if c == d || orient2d(&uv[a], &uv[d], &uv[c]) <= 0.0 || orient2d(&uv[d], &uv[b], &uv[c]) <= 0.0 {
             continue;
         }
         let n = (geometry.normal_at)(&((uv[a] + uv[b]) * 0.5));
@@ -145,6 +140,11 @@ mod tests {
         (uv, position)
     }
 
+    /// The surface normal of the tests: +z everywhere.
+    fn up(_: &Vec2) -> Vec3 {
+        Vec3::z()
+    }
+
     fn worst(tris: &[[usize; 3]], position: &[Vec3]) -> f64 {
         tris.iter()
             .map(|t| signed_shape(&position[t[0]], &position[t[1]], &position[t[2]], &Vec3::z()))
@@ -162,7 +162,6 @@ mod tests {
     #[test]
     fn a_folded_pair_is_flipped_to_the_diagonal_that_follows_the_surface() {
         let (uv, position) = dented_square();
-        let up = |_: &Vec2| Vec3::z();
         let geometry = FlipGeometry { uv: &uv, position: &position, normal_at: &up };
         let mut tris = vec![[0, 1, 3], [1, 2, 3]];
         assert!(worst(&tris, &position) < 0.0);
@@ -179,7 +178,7 @@ mod tests {
         sorted.sort_unstable();
         assert_eq!(sorted, [[0, 1, 2], [0, 2, 3]]);
         for t in &tris {
-            assert!(orient(&uv[t[0]], &uv[t[1]], &uv[t[2]]) > 0.0, "{t:?} stays counter-clockwise in (u, v)");
+            assert!(orient2d(&uv[t[0]], &uv[t[1]], &uv[t[2]]) > 0.0, "{t:?} stays counter-clockwise in (u, v)");
         }
         // Already the better diagonal: nothing to do.
         assert_eq!(flip_toward_surface_shape(&geometry, &mut tris, &|_, _| false), 0);
@@ -195,7 +194,6 @@ mod tests {
             Vec3::new(1.0, 0.1, 0.0),
         ];
         let uv: Vec<Vec2> = position.iter().map(|p| Vec2::new(p.x, p.y)).collect();
-        let up = |_: &Vec2| Vec3::z();
         let geometry = FlipGeometry { uv: &uv, position: &position, normal_at: &up };
         let mut tris = vec![[0, 1, 2], [0, 2, 3]];
         assert!(worst(&tris, &position) > 0.0);
@@ -205,7 +203,6 @@ mod tests {
     #[test]
     fn constrained_edges_and_nonconvex_pairs_stay() {
         let (uv, position) = dented_square();
-        let up = |_: &Vec2| Vec3::z();
         let geometry = FlipGeometry { uv: &uv, position: &position, normal_at: &up };
         let mut tris = vec![[0, 1, 3], [1, 2, 3]];
         let constrained = |a: usize, b: usize| (a.min(b), a.max(b)) == (1, 3);

@@ -237,7 +237,7 @@ fn triangulate_patch(
         flip_toward_surface_shape(&geometry, &mut kept, &is_constrained);
         let mut again = false;
         for t in &kept {
-            if !is_upright(&chart, surface, &points, t, direct) {
+            if !is_upright(&chart, surface, &points, &position, t, direct) {
                 for &v in t {
                     if v >= nb + n_singular {
                         removed[v] = true;
@@ -285,11 +285,18 @@ fn triangulate_patch(
     Ok(out)
 }
 
-/// True when the triangle `t` of chart points (counter-clockwise in `(u, v)`)
-/// faces the side of the surface normal in 3D (after reversal when the
-/// chart is indirect).
-fn is_upright(chart: &PatchChart, surface: &TriMesh, points: &[ChartPoint], t: &[usize; 3], direct: bool) -> bool {
-    let p = t.map(|v| chart.position(points[v].tri, &points[v].bary));
+/// True when the triangle `t` of chart points (counter-clockwise in `(u, v)`,
+/// 3D positions in `position`) faces the side of the surface normal in 3D
+/// (after reversal when the chart is indirect).
+fn is_upright(
+    chart: &PatchChart,
+    surface: &TriMesh,
+    points: &[ChartPoint],
+    position: &[Vec3],
+    t: &[usize; 3],
+    direct: bool,
+) -> bool {
+    let p = t.map(|v| position[v]);
     let c = (points[t[0]].uv + points[t[1]].uv + points[t[2]].uv) / 3.0;
     let Some((lt, _)) = chart.locate_near(&c) else { return true };
     let a = (p[1] - p[0]).cross(&(p[2] - p[0])).dot(&surface.face_normal(chart.source_face(lt)));
