@@ -3,15 +3,20 @@
 //!
 //! Steps, in order:
 //! 1. drop vertices no triangle references (counted as unreferenced);
-//! 2. weld exactly, then by tolerance ([`super::weld`]);
+//! 2. weld exactly ([`super::weld`]);
 //! 3. remove **degenerate** triangles: a repeated vertex index (often
-//!    created by the weld);
-//! 4. resolve **zero-area** triangles (definition below) without opening
+//!    created by the weld), then **duplicate** triangles: same three
+//!    vertices as an earlier triangle in any order or orientation (the
+//!    first is kept);
+//! 4. weld by tolerance the vertices of open edges and short edges
+//!    ([`super::weld::weld_by_tolerance`]; it needs step 3, as a duplicate
+//!    makes the open edges of a crack look shared), then step 3 again when
+//!    it joined any;
+//! 5. resolve **zero-area** triangles (definition below) without opening
 //!    the surface ([`super::degenerate`]): a needle's vanishing edge is
 //!    collapsed, a cap's long edge flipped; only a triangle neither applies
-//!    to (long edge on the boundary or non-manifold) is removed;
-//! 5. remove **duplicate** triangles: same three vertices as an earlier
-//!    triangle in any order or orientation (the first is kept);
+//!    to (long edge on the boundary or non-manifold) is removed; duplicates
+//!    a collapse or flip made are removed;
 //! 6. drop vertices left unreferenced by 3–5 (same counter as step 1);
 //! 7. orient each edge-connected component consistently and closed ones
 //!    outward ([`super::orientation::orient_consistently`]);
@@ -38,7 +43,7 @@ use super::degenerate::resolve_zero_area_triangles;
 use super::equal_keys::first_index_of_equal_key;
 use super::orientation::orient_components;
 use super::summary::{TopologySummary, topology_summary_of};
-use super::weld::weld_vertices;
+use super::weld::{weld_by_tolerance, weld_exact};
 use super::{MeshError, Topology, TriMesh};
 use crate::geom::{BoundingBox, Vec3};
 use rayon::prelude::*;
@@ -148,17 +153,21 @@ pub fn repair_triangle_soup(
     let (positions, mut triangles, n_dropped) = drop_unreferenced(positions, triangles);
     report.n_unreferenced_vertices_dropped += n_dropped;
 
-    let weld = weld_vertices(&positions, tolerance_rel);
-    report.n_vertices_welded_exact = weld.n_welded_exact;
-    report.n_vertices_welded_tolerance = weld.n_welded_tolerance;
-    report.weld_tolerance_abs = weld.tolerance;
-    report.tolerance_weld_abandoned = weld.tolerance_weld_abandoned;
-    triangles.par_iter_mut().for_each(|t| *t = t.map(|v| weld.new_index[v as usize]));
-    let positions = weld.positions;
+    let (exact_index, positions) = weld_exact(&positions);
+    report.n_vertices_welded_exact = n_in - n_dropped - positions.len();
+    triangles.par_iter_mut().for_each(|t| *t = t.map(|v| exact_index[v as usize]));
+    drop(exact_index);
+    remove_degenerate_and_duplicates(&mut triangles, &mut report);
 
-    let before = triangles.len();
-    triangles.retain(|t| t[0] != t[1] && t[1] != t[2] && t[2] != t[0]);
-    report.n_degenerate_triangles_removed = before - triangles.len();
+    let weld = weld_by_tolerance(positions, &triangles, tolerance_rel);
+    report.n_vertices_welded_tolerance = weld.n_welded;
+    report.weld_tolerance_abs = weld.tolerance;
+    report.tolerance_weld_abandoned = weld.abandoned;
+    if weld.n_welded > 0 {
+        triangles.par_iter_mut().for_each(|t| *t = t.map(|v| weld.new_index[v as usize]));
+        remove_degenerate_and_duplicates(&mut triangles, &mut report);
+    }
+    let positions = weld.positions;
 
     let diagonal = BoundingBox::of_points(&positions).map_or(0.0, |b| b.diagonal());
     let zero_area = resolve_zero_area_triangles(&positions, &mut triangles, diagonal);
@@ -166,8 +175,10 @@ pub fn repair_triangle_soup(
     report.n_triangles_removed_by_collapse = zero_area.n_triangles_removed_by_collapse;
     report.n_zero_area_edges_flipped = zero_area.n_cap_edges_flipped;
     report.n_zero_area_triangles_removed = zero_area.n_removed;
-
-    report.n_duplicate_triangles_removed = remove_duplicates(&mut triangles);
+    if zero_area.n_needle_edges_collapsed + zero_area.n_cap_edges_flipped > 0 {
+        // A collapse or flip can make a triangle repeat another.
+        report.n_duplicate_triangles_removed += remove_duplicates(&mut triangles);
+    }
 
     let (positions, triangles, n_orphans) = drop_unreferenced(positions, triangles);
     report.n_unreferenced_vertices_dropped += n_orphans;
@@ -199,6 +210,15 @@ pub fn repair_triangle_soup(
     report.closed = summary.is_closed();
     report.topology = Some(summary);
     Ok((mesh, report))
+}
+
+/// Remove triangles that use a vertex twice, then those that repeat an
+/// earlier one, adding both counts to `report`.
+fn remove_degenerate_and_duplicates(triangles: &mut Vec<[u32; 3]>, report: &mut RepairReport) {
+    let before = triangles.len();
+    triangles.retain(|t| t[0] != t[1] && t[1] != t[2] && t[2] != t[0]);
+    report.n_degenerate_triangles_removed += before - triangles.len();
+    report.n_duplicate_triangles_removed += remove_duplicates(triangles);
 }
 
 /// Remove triangles whose vertex set repeats an earlier one (the first is

@@ -11,7 +11,17 @@
 //! diagonal of the exactly-welded vertices, vertices `p`, `q` with
 //! `|p − q| ≤ δ` are joined, and welding takes the transitive closure of that
 //! relation (union–find): a cluster is a connected component of the graph
-//! "closer than δ". Candidates come from a spatial hash grid of cell size
+//! "closer than δ". Only **candidates** take part: the vertices of an edge
+//! that an odd number of triangles use (after the exact weld: the open
+//! sides of a crack, and boundaries) and the ends of edges no longer than δ
+//! ([`tolerance_candidates`]). A vertex all of whose edges are shared by two
+//! triangles lies inside a surface that is already closed around it; joining
+//! it to a vertex of another sheet that merely comes within δ (two parts
+//! touching) would make a non-manifold vertex, not close a crack. This is
+//! also how mesh-repair tools close cracks (admesh's `--nearby` matches only
+//! unconnected facet edges), and it makes the tolerance weld of a closed
+//! upload one pass over its triangles.
+//! Candidates come from a spatial hash grid of cell size
 //! `h = 8δ`: for a point only the cells overlapping the box `p ± 1.01δ` are
 //! visited (one to eight, about two on average). The cells are matched by
 //! grouping equal cell keys, not by one lookup per point in a global table,
@@ -41,67 +51,148 @@ use crate::geom::{BoundingBox, Vec3};
 use crate::mesh::components::DisjointSets;
 use crate::mesh::equal_keys::first_index_of_equal_key;
 use rayon::prelude::*;
+use std::hash::BuildHasher;
 
 /// Smallest relative tolerance applied (see the module doc).
 pub const MIN_RELATIVE_TOLERANCE: f64 = 1e-14;
 
-/// The result of [`weld_vertices`].
+/// The result of [`weld_by_tolerance`].
 #[derive(Debug, Clone, PartialEq)]
 pub struct Weld {
-    /// New index of every input vertex.
+    /// New index of every vertex given.
     pub new_index: Vec<u32>,
-    /// Positions of the welded vertices (each its cluster's first input position).
+    /// Positions of the welded vertices (each its cluster's lowest-index position).
     pub positions: Vec<Vec3>,
-    /// Vertices removed because they coincided exactly with an earlier one.
-    pub n_welded_exact: usize,
-    /// Further vertices removed by the tolerance weld.
-    pub n_welded_tolerance: usize,
-    /// Absolute tolerance δ used; 0 when only the exact weld ran.
+    /// Vertices removed by the tolerance weld.
+    pub n_welded: usize,
+    /// Absolute tolerance δ used; 0 when the relative tolerance is below
+    /// [`MIN_RELATIVE_TOLERANCE`] (nothing is welded).
     pub tolerance: f64,
     /// True when the tolerance weld hit its work bound and was not applied.
-    pub tolerance_weld_abandoned: bool,
+    pub abandoned: bool,
 }
 
-/// Weld exactly, then within `tolerance_rel · D` (see the module doc).
-pub fn weld_vertices(positions: &[Vec3], tolerance_rel: f64) -> Weld {
-    let (exact_index, exact_positions) = weld_exact(positions);
-    let n_welded_exact = positions.len() - exact_positions.len();
-    let diagonal = BoundingBox::of_points(&exact_positions).map_or(0.0, |b| b.diagonal());
+/// The tolerance weld of the module doc: joins the candidates of
+/// `triangles` (indices into `positions`, which are exactly welded, the
+/// triangles without repeated vertices or duplicates — a duplicate would
+/// make the edges of a crack look shared) within `tolerance_rel · D`.
+pub fn weld_by_tolerance(positions: Vec<Vec3>, triangles: &[[u32; 3]], tolerance_rel: f64) -> Weld {
+    let diagonal = BoundingBox::of_points(&positions).map_or(0.0, |b| b.diagonal());
     let tolerance = if tolerance_rel.is_finite() && tolerance_rel >= MIN_RELATIVE_TOLERANCE && diagonal.is_finite() {
         tolerance_rel * diagonal
     } else {
         0.0
     };
-    if tolerance <= 0.0 {
-        return Weld {
-            new_index: exact_index,
-            positions: exact_positions,
-            n_welded_exact,
-            n_welded_tolerance: 0,
-            tolerance: 0.0,
-            tolerance_weld_abandoned: false,
-        };
-    }
-    let Some((cluster_index, cluster_positions)) = weld_within(&exact_positions, tolerance) else {
-        return Weld {
-            new_index: exact_index,
-            positions: exact_positions,
-            n_welded_exact,
-            n_welded_tolerance: 0,
-            tolerance,
-            tolerance_weld_abandoned: true,
-        };
+    let unchanged = |positions: Vec<Vec3>, tolerance, abandoned| Weld {
+        new_index: (0..positions.len() as u32).collect(),
+        positions,
+        n_welded: 0,
+        tolerance,
+        abandoned,
     };
-    let n_welded_tolerance = exact_positions.len() - cluster_positions.len();
-    let new_index = exact_index.par_iter().map(|&i| cluster_index[i as usize]).collect();
+    if tolerance <= 0.0 {
+        return unchanged(positions, 0.0, false);
+    }
+    let candidates = tolerance_candidates(triangles, &positions, tolerance);
+    if candidates.is_empty() {
+        return unchanged(positions, tolerance, false);
+    }
+    let candidate_positions: Vec<Vec3> = candidates.iter().map(|&v| positions[v as usize]).collect();
+    let Some((cluster_of_candidate, _)) = weld_within(&candidate_positions, tolerance) else {
+        return unchanged(positions, tolerance, true);
+    };
+    // The lowest id of each cluster (candidates are increasing, so its first
+    // candidate) represents it.
+    let mut representative = vec![u32::MAX; candidates.len()];
+    for (&c, &v) in cluster_of_candidate.iter().zip(&candidates) {
+        if representative[c as usize] == u32::MAX {
+            representative[c as usize] = v;
+        }
+    }
+    let mut first: Vec<u32> = (0..positions.len() as u32).collect();
+    for (&c, &v) in cluster_of_candidate.iter().zip(&candidates) {
+        first[v as usize] = representative[c as usize];
+    }
+    let (new_index, kept) = dense_ids_of_firsts(&first);
     Weld {
         new_index,
-        positions: cluster_positions,
-        n_welded_exact,
-        n_welded_tolerance,
+        n_welded: positions.len() - kept.len(),
+        positions: kept.iter().map(|&v| positions[v as usize]).collect(),
         tolerance,
-        tolerance_weld_abandoned: false,
+        abandoned: false,
     }
+}
+
+/// The vertices the tolerance weld may join, increasing: those with an edge
+/// that an odd number of `triangles` use, and the ends of edges no longer
+/// than `tolerance`.
+///
+/// Odd use is found without an edge table: every triangle XORs, for each of
+/// its edges `{a, b}`, `h(b)` into `a`'s word and `h(a)` into `b`'s, with `h`
+/// a bijection of the id salted by a random seed. An edge used twice cancels,
+/// so a word is non-zero exactly when some edge of the vertex is used an odd
+/// number of times — always for one or two such edges (the usual boundary
+/// vertex: `h` is a bijection that is never 0 on ids), and but for a 2⁻⁶⁴
+/// coincidence that an upload cannot aim at (the seed is random) for more.
+/// XOR is associative, so the answer does not depend on the thread count.
+pub fn tolerance_candidates(
+    triangles: &[[u32; 3]],
+    positions: &[Vec3],
+    tolerance: f64,
+) -> Vec<u32> {
+    let n = positions.len();
+    // High bits set: `seed ^ v` is never 0 for a 32-bit id, and `mix(0) = 0` only.
+    let seed = foldhash::fast::RandomState::default().hash_one(0u64) | (1 << 63);
+    let h = |v: u32| mix64(seed ^ u64::from(v));
+    let tol2 = tolerance * tolerance;
+    let threads = rayon::current_num_threads().max(1);
+    let per = triangles.len().div_ceil(threads).max(1);
+    let (words, mut short) = triangles
+        .par_chunks(per)
+        .map(|chunk| {
+            let mut words = vec![0u64; n];
+            let mut short = Vec::new();
+            for t in chunk {
+                for i in 0..3 {
+                    let (a, b) = (t[i], t[(i + 1) % 3]);
+                    words[a as usize] ^= h(b);
+                    words[b as usize] ^= h(a);
+                    if a != b && (positions[a as usize] - positions[b as usize]).norm_squared() <= tol2 {
+                        short.extend([a, b]);
+                    }
+                }
+            }
+            (words, short)
+        })
+        .reduce(
+            || (Vec::new(), Vec::new()),
+            |(mut w, mut s), (w2, s2)| {
+                if w.is_empty() {
+                    w = w2;
+                } else if !w2.is_empty() {
+                    w.par_iter_mut().zip(&w2).for_each(|(x, y)| *x ^= y);
+                }
+                s.extend(s2);
+                (w, s)
+            },
+        );
+    let mut out: Vec<u32> =
+        words.par_iter().enumerate().filter(|&(_, &w)| w != 0).map(|(v, _)| v as u32).collect();
+    if !short.is_empty() {
+        out.append(&mut short);
+        out.par_sort_unstable();
+        out.dedup();
+    }
+    out
+}
+
+/// The 64-bit finalizer of SplitMix64: a bijection with good avalanche,
+/// `mix64(0) = 0`.
+#[inline]
+fn mix64(mut x: u64) -> u64 {
+    x = (x ^ (x >> 30)).wrapping_mul(0xbf58_476d_1ce4_e5b9);
+    x = (x ^ (x >> 27)).wrapping_mul(0x94d0_49bb_1331_11eb);
+    x ^ (x >> 31)
 }
 
 /// Coordinate bits with `−0.0` mapped to `0.0`.
@@ -326,6 +417,14 @@ mod tests {
     use rand::rngs::StdRng;
     use rand::{Rng, SeedableRng};
 
+    /// Triangles `[3k, 3k + 1, 3k + 2]` over `n ≥ 3` points, the last one
+    /// wrapping around to points 0 and 1: every point has an edge used once,
+    /// so every point is a tolerance-weld candidate.
+    fn soup(n: usize) -> Vec<[u32; 3]> {
+        let n = n as u32;
+        (0..n.div_ceil(3)).map(|k| [3 * k, (3 * k + 1) % n, (3 * k + 2) % n]).collect()
+    }
+
     #[test]
     fn exact_weld_merges_bitwise_equal_and_signed_zeros() {
         let p = vec![
@@ -338,12 +437,13 @@ mod tests {
         let (idx, uniq) = weld_exact(&p);
         assert_eq!(idx, vec![0, 0, 1, 0, 2]);
         assert_eq!(uniq.len(), 3);
-        let w = weld_vertices(&p, 0.0);
-        assert_eq!((w.n_welded_exact, w.n_welded_tolerance, w.tolerance), (2, 0, 0.0));
-        let w = weld_vertices(&p, 1e-6);
-        assert_eq!((w.n_welded_exact, w.n_welded_tolerance), (2, 1));
+        // The three exact vertices as one open triangle: all are candidates.
+        let w = weld_by_tolerance(uniq.clone(), &[[0, 1, 2]], 0.0);
+        assert_eq!((w.n_welded, w.tolerance), (0, 0.0));
+        let w = weld_by_tolerance(uniq.clone(), &[[0, 1, 2]], 1e-6);
+        assert_eq!(w.n_welded, 1);
         assert!((w.tolerance - 1e-6 * 2f64.sqrt()).abs() < 1e-18);
-        assert_eq!(w.new_index, vec![0, 0, 0, 0, 1]);
+        assert_eq!(w.new_index, vec![0, 0, 1]);
         assert_eq!(w.positions, vec![p[0], p[4]]);
     }
 
@@ -473,11 +573,11 @@ mod tests {
     fn tiny_or_invalid_tolerances_only_weld_exactly() {
         let p = vec![Vec3::zeros(), Vec3::new(1e-20, 0.0, 0.0), Vec3::new(1.0, 0.0, 0.0)];
         for rel in [0.0, 1e-16, f64::NAN, -1.0, f64::INFINITY] {
-            let w = weld_vertices(&p, rel);
+            let w = weld_by_tolerance(p.clone(), &soup(p.len()), rel);
             assert_eq!((w.positions.len(), w.tolerance), (3, 0.0), "{rel}");
         }
-        assert_eq!(weld_vertices(&p, 1e-6).positions.len(), 2);
-        assert!(weld_vertices(&[], 1e-6).positions.is_empty());
+        assert_eq!(weld_by_tolerance(p.clone(), &soup(p.len()), 1e-6).positions.len(), 2);
+        assert!(weld_by_tolerance(Vec::new(), &[], 1e-6).positions.is_empty());
     }
 
     #[test]
@@ -486,12 +586,48 @@ mod tests {
         // 8 million pairs are within the tolerance.
         let mut p: Vec<Vec3> = (0..4000).map(|i| Vec3::new(i as f64 * 1e-13, 0.0, 0.0)).collect();
         p.push(Vec3::new(1.0, 1.0, 1.0));
-        let w = weld_vertices(&p, 1e-6);
-        assert!(w.tolerance_weld_abandoned);
-        assert_eq!((w.positions.len(), w.n_welded_tolerance), (4001, 0));
+        let w = weld_by_tolerance(p.clone(), &soup(p.len()), 1e-6);
+        assert!(w.abandoned);
+        assert_eq!((w.positions.len(), w.n_welded), (4001, 0));
         // Fewer points stay within the bound and weld.
-        let w = weld_vertices(&p[3900..], 1e-6);
-        assert!(!w.tolerance_weld_abandoned);
+        let w = weld_by_tolerance(p[3900..].to_vec(), &soup(101), 1e-6);
+        assert!(!w.abandoned);
         assert_eq!(w.positions.len(), 2);
+    }
+
+    /// Only the vertices of a crack (edges used once) and of edges shorter
+    /// than the tolerance are candidates; a closed surface has none, and a
+    /// vertex of it that comes within δ of another sheet is not joined.
+    #[test]
+    fn candidates_are_crack_sides_and_short_edges() {
+        let m = crate::mesh::fixtures::icosphere(2);
+        let tris: Vec<[u32; 3]> = m.triangles.iter().map(|t| t.map(|v| v.0)).collect();
+        assert!(tolerance_candidates(&tris, &m.positions, 1e-6).is_empty());
+        // A second sphere whose first vertex lies 1e-9 from the first's: both
+        // closed, so nothing is welded.
+        let n = m.positions.len() as u32;
+        let mut p = m.positions.clone();
+        let shift = m.positions[0] * 2.0 + Vec3::new(1e-9, 0.0, 0.0);
+        p.extend(m.positions.iter().map(|q| -q + shift));
+        let mut t = tris.clone();
+        t.extend(tris.iter().map(|t| [t[0] + n, t[2] + n, t[1] + n]));
+        let w = weld_by_tolerance(p.clone(), &t, 1e-6);
+        assert_eq!((w.n_welded, w.positions.len()), (0, p.len()));
+        // Cut the first sphere open along a triangle's edge (its last vertex
+        // replaced by a copy 1e-9 away in one triangle): the copy and the
+        // edge's vertices are candidates, and the weld closes the crack.
+        let [a, b, c] = tris[0];
+        let mut p2 = m.positions.clone();
+        p2.push(m.positions[c as usize] + Vec3::new(1e-9, 0.0, 0.0));
+        let mut t2 = tris.clone();
+        t2[0] = [a, b, n];
+        let cand = tolerance_candidates(&t2, &p2, 1e-6);
+        assert_eq!(cand, { let mut v = vec![a, b, c, n]; v.sort(); v });
+        let w = weld_by_tolerance(p2, &t2, 1e-6);
+        assert_eq!((w.n_welded, w.new_index[n as usize]), (1, w.new_index[c as usize]));
+        // An edge shorter than the tolerance inside a closed surface: its ends.
+        let mut p3 = m.positions.clone();
+        p3[b as usize] = p3[a as usize] + Vec3::new(1e-9, 0.0, 0.0);
+        assert_eq!(tolerance_candidates(&tris, &p3, 1e-6), { let mut v = vec![a, b]; v.sort(); v });
     }
 }
