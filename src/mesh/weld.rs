@@ -135,11 +135,7 @@ pub fn weld_by_tolerance(positions: Vec<Vec3>, triangles: &[[u32; 3]], tolerance
 /// vertex: `h` is a bijection that is never 0 on ids), and but for a 2⁻⁶⁴
 /// coincidence that an upload cannot aim at (the seed is random) for more.
 /// XOR is associative, so the answer does not depend on the thread count.
-pub fn tolerance_candidates(
-    triangles: &[[u32; 3]],
-    positions: &[Vec3],
-    tolerance: f64,
-) -> Vec<u32> {
+pub fn tolerance_candidates(triangles: &[[u32; 3]], positions: &[Vec3], tolerance: f64) -> Vec<u32> {
     let n = positions.len();
     // High bits set: `seed ^ v` is never 0 for a 32-bit id, and `mix(0) = 0` only.
     let seed = foldhash::fast::RandomState::default().hash_one(0u64) | (1 << 63);
@@ -176,8 +172,7 @@ pub fn tolerance_candidates(
                 (w, s)
             },
         );
-    let mut out: Vec<u32> =
-        words.par_iter().enumerate().filter(|&(_, &w)| w != 0).map(|(v, _)| v as u32).collect();
+    let mut out: Vec<u32> = words.par_iter().enumerate().filter(|&(_, &w)| w != 0).map(|(v, _)| v as u32).collect();
     if !short.is_empty() {
         out.append(&mut short);
         out.par_sort_unstable();
@@ -622,12 +617,20 @@ mod tests {
         let mut t2 = tris.clone();
         t2[0] = [a, b, n];
         let cand = tolerance_candidates(&t2, &p2, 1e-6);
-        assert_eq!(cand, { let mut v = vec![a, b, c, n]; v.sort(); v });
+        assert_eq!(cand, {
+            let mut v = vec![a, b, c, n];
+            v.sort();
+            v
+        });
         let w = weld_by_tolerance(p2, &t2, 1e-6);
         assert_eq!((w.n_welded, w.new_index[n as usize]), (1, w.new_index[c as usize]));
         // An edge shorter than the tolerance inside a closed surface: its ends.
         let mut p3 = m.positions.clone();
         p3[b as usize] = p3[a as usize] + Vec3::new(1e-9, 0.0, 0.0);
-        assert_eq!(tolerance_candidates(&tris, &p3, 1e-6), { let mut v = vec![a, b]; v.sort(); v });
+        assert_eq!(tolerance_candidates(&tris, &p3, 1e-6), {
+            let mut v = vec![a, b];
+            v.sort();
+            v
+        });
     }
 }

@@ -4,21 +4,30 @@
 //! which is not Delaunay on the surface: where the chart stretches one way
 //! more than the other (mean value maps do near a patch's boundary), the
 //! `(u, v)` circumcircle test can pick the diagonal that is short in
-//! `(u, v)` and long in 3D, and a triangle folds over the surface (its
-//! normal against the surface's). Gmsh meets the same problem with a metric
-//! in the parametric plane; here the folds are repaired afterwards by flips
-//! judged in 3D.
+//! `(u, v)` and long in 3D: a sliver on the surface, or a triangle folded
+//! over it (its normal against the surface's). Gmsh meets the same problem
+//! with a metric in the parametric plane; here the triangulation is
+//! corrected afterwards by flips judged on the 3D points, in two passes:
 //!
-//! An interior edge is flipped when one of its two triangles is folded
-//! (signed shape ≤ 0, [`signed_shape`]), the two new triangles are
-//! counter-clockwise in `(u, v)` (so the triangulation stays embedded in
-//! the chart), and the worse of the two improves, to at least
-//! [`MIN_SHAPE_MADE`]. Only folds are repaired: flipping upright slivers
-//! too changed the meshes of inputs that were already right and made a
-//! degenerate quad on one (`docs/decisions.md`). Constrained edges (the
-//! patch boundary) are never flipped. Every flip raises the pair's
-//! minimum, and the pass is bounded, so it ends; it depends on the
-//! triangles' order only, which is the triangulation's (deterministic).
+//! 1. [`flip_to_delaunay_in_3d`]: an edge whose two opposite angles, measured
+//!    in 3D, add up to more than `π +` [`DELAUNAY_ANGLE_MARGIN`] is flipped
+//!    (the circumcircle test with 3D lengths). The frontal points were
+//!    placed at the target size in 3D, so this recovers the triangles their
+//!    spacing asks for. The margin keeps the chart's diagonal in
+//!    near-cocircular pairs (the square cells of the frontal lattice, whose
+//!    angle sums scatter a few degrees around π), so the lattice is not
+//!    scrambled.
+//! 2. [`flip_toward_surface_shape`]: an edge next to a folded triangle
+//!    (signed shape ≤ 0, [`signed_shape`]) is flipped when the worse of the
+//!    pair improves.
+//!
+//! Every flip keeps both new triangles counter-clockwise in `(u, v)` (the
+//! triangulation stays embedded in the chart) and makes no triangle of
+//! signed shape below [`MIN_SHAPE_MADE`] (no fold, and no flat triangle such
+//! as three points of a straight curve). Constrained edges (the patch
+//! boundary) are never flipped. Each pass is bounded, so it ends; it
+//! depends on the triangles' order only, which is the triangulation's
+//! (deterministic).
 
 use std::collections::HashMap;
 
@@ -35,14 +44,18 @@ pub struct FlipGeometry<'a> {
     pub normal_at: &'a dyn Fn(&Vec2) -> Vec3,
 }
 
-/// Flips made at most per triangle (a bound that real inputs never reach;
-/// it keeps a pathological chart from looping).
+/// Flips made at most per triangle and pass (a bound that real inputs never
+/// reach; it keeps a pathological chart from looping).
 const MAX_FLIPS_PER_TRIANGLE: usize = 8;
 
-/// Smallest [`signed_shape`] a flip may make: a flip that would turn a
-/// folded pair into a degenerate one (three points of a straight curve,
-/// say) is not made, so the fold stays visible to the caller.
+/// Smallest [`signed_shape`] a flip may make: a flip that would make a
+/// degenerate triangle (three points of a straight curve, say) is not made.
 const MIN_SHAPE_MADE: f64 = 0.01;
+
+/// Radians by which the 3D angles opposite an edge must exceed π before
+/// [`flip_to_delaunay_in_3d`] flips it (about 11.5°; the choice and the
+/// values measured are in `docs/decisions.md`).
+pub const DELAUNAY_ANGLE_MARGIN: f64 = 0.2;
 
 /// Signed shape of the 3D triangle `(a, b, c)` against the normal `n`:
 /// `2√3 ((b − a) × (c − a)) · n / (|ab|² + |bc|² + |ca|²)`, which is 1 for an
@@ -56,19 +69,43 @@ pub fn signed_shape(a: &Vec3, b: &Vec3, c: &Vec3, n: &Vec3) -> f64 {
     2.0 * 3f64.sqrt() * (b - a).cross(&(c - a)).dot(n) / sum
 }
 
+/// Angle at `c` of the 3D triangle `(a, b, c)`, in radians.
+fn angle_at(a: &Vec3, b: &Vec3, c: &Vec3) -> f64 {
+    let (u, v) = (a - c, b - c);
+    u.cross(&v).norm().atan2(u.dot(&v))
+}
+
 /// The vertex of `t` opposite the directed edge `a → b`, when `t` has it.
 fn opposite(t: &[usize; 3], a: usize, b: usize) -> Option<usize> {
     (0..3).find(|&i| t[i] == a && t[(i + 1) % 3] == b).map(|i| t[(i + 2) % 3])
 }
 
-/// Flips edges of `triangles` (counter-clockwise in `(u, v)`, indexing the
-/// points of `geometry`) next to a folded triangle whose flip improves the
-/// worse triangle of the pair in 3D (module doc); `is_constrained` names
-/// the edges that must stay. Returns the number of flips.
-pub fn flip_toward_surface_shape(
+/// A pair of triangles `(a, b, c)`, `(b, a, d)` across the edge `a–b`, as a
+/// flip criterion sees it: the signed shapes of the pair before and after
+/// the flip to `(a, d, c)`, `(d, b, c)`, against the surface normal at the
+/// edge, and the 3D points.
+struct Pair<'a> {
+    a: usize,
+    b: usize,
+    c: usize,
+    d: usize,
+    position: &'a [Vec3],
+    /// Worse signed shape of the two triangles now.
+    before: f64,
+    /// Worse signed shape of the two triangles the flip makes.
+    after: f64,
+}
+
+/// Flips edges of `triangles` (counter-clockwise in `(u, v)`) for which
+/// `wanted` holds, among those the module doc allows (not constrained, new
+/// triangles counter-clockwise in `(u, v)` and of shape at least
+/// [`MIN_SHAPE_MADE`]), until none is left or the bound is reached; the
+/// edges of each flipped pair are examined again. Returns the flips made.
+fn flip_while(
     geometry: &FlipGeometry<'_>,
     triangles: &mut [[usize; 3]],
     is_constrained: &dyn Fn(usize, usize) -> bool,
+    wanted: impl Fn(&Pair<'_>) -> bool,
 ) -> usize {
     let key = |a: usize, b: usize| (a.min(b), a.max(b));
     let mut faces_of: HashMap<(usize, usize), Vec<usize>> = HashMap::new();
@@ -80,9 +117,7 @@ pub fn flip_toward_surface_shape(
     let mut stack: Vec<(usize, usize)> = faces_of.keys().copied().collect();
     stack.sort_unstable();
     stack.reverse();
-    let shape = |a: usize, b: usize, c: usize, n: &Vec3| {
-        signed_shape(&geometry.position[a], &geometry.position[b], &geometry.position[c], n)
-    };
+    let (uv, position) = (geometry.uv, geometry.position);
     let budget = MAX_FLIPS_PER_TRIANGLE * triangles.len();
     let mut n_flips = 0;
     while let Some((p, q)) = stack.pop() {
@@ -97,14 +132,21 @@ pub fn flip_toward_surface_shape(
         // Orient the pair as t1 = (a, b, c), t2 = (b, a, d).
         let (a, b) = if opposite(&triangles[f1], p, q).is_some() { (p, q) } else { (q, p) };
         let (Some(c), Some(d)) = (opposite(&triangles[f1], a, b), opposite(&triangles[f2], b, a)) else { continue };
-        let uv = geometry.uv;
         if c == d || orient2d(&uv[a], &uv[d], &uv[c]) <= 0.0 || orient2d(&uv[d], &uv[b], &uv[c]) <= 0.0 {
             continue;
         }
         let n = (geometry.normal_at)(&((uv[a] + uv[b]) * 0.5));
-        let before = shape(a, b, c, &n).min(shape(b, a, d, &n));
-        let after = shape(a, d, c, &n).min(shape(d, b, c, &n));
-        if before > 0.0 || after <= before + 1e-9 || after < MIN_SHAPE_MADE {
+        let shape = |x: usize, y: usize, z: usize| signed_shape(&position[x], &position[y], &position[z], &n);
+        let pair = Pair {
+            a,
+            b,
+            c,
+            d,
+            position,
+            before: shape(a, b, c).min(shape(b, a, d)),
+            after: shape(a, d, c).min(shape(d, b, c)),
+        };
+        if pair.after < MIN_SHAPE_MADE || !wanted(&pair) {
             continue;
         }
         triangles[f1] = [a, d, c];
@@ -120,6 +162,34 @@ pub fn flip_toward_surface_shape(
         n_flips += 1;
     }
     n_flips
+}
+
+/// Pass 1 of the module doc: flips the edges of `triangles` (counter-clockwise
+/// in `(u, v)`, indexing the points of `geometry`) whose opposite 3D angles
+/// add up to more than `π +` [`DELAUNAY_ANGLE_MARGIN`]; `is_constrained`
+/// names the edges that must stay. Returns the number of flips.
+pub fn flip_to_delaunay_in_3d(
+    geometry: &FlipGeometry<'_>,
+    triangles: &mut [[usize; 3]],
+    is_constrained: &dyn Fn(usize, usize) -> bool,
+) -> usize {
+    flip_while(geometry, triangles, is_constrained, |e| {
+        let p = e.position;
+        angle_at(&p[e.a], &p[e.b], &p[e.c]) + angle_at(&p[e.a], &p[e.b], &p[e.d])
+            > std::f64::consts::PI + DELAUNAY_ANGLE_MARGIN
+    })
+}
+
+/// Pass 2 of the module doc: flips edges of `triangles` next to a folded
+/// triangle when the flip improves the worse triangle of the pair in 3D;
+/// `is_constrained` names the edges that must stay. Returns the number of
+/// flips.
+pub fn flip_toward_surface_shape(
+    geometry: &FlipGeometry<'_>,
+    triangles: &mut [[usize; 3]],
+    is_constrained: &dyn Fn(usize, usize) -> bool,
+) -> usize {
+    flip_while(geometry, triangles, is_constrained, |e| e.before <= 0.0 && e.after > e.before + 1e-9)
 }
 
 #[cfg(test)]
@@ -182,6 +252,80 @@ mod tests {
         }
         // Already the better diagonal: nothing to do.
         assert_eq!(flip_toward_surface_shape(&geometry, &mut tris, &|_, _| false), 0);
+    }
+
+    /// A planar square whose chart is stretched 4× along v: in (u, v) the
+    /// diagonal 0–2 of the rhombus-like pair is Delaunay, in 3D it is the
+    /// long one (opposite angles 2·76° > 180° + margin), so the 3D pass flips
+    /// it to 1–3; the fold pass, which sees no fold, does not.
+    /// The rhombus of [`a_diagonal_long_in_3d_is_flipped_to_the_short_one`]:
+    /// 3D points with diagonals 0–2 of length 2 and 1–3 of length 1, and a
+    /// chart stretching y 4× (so 0–2 is the `(u, v)` Delaunay diagonal).
+    fn stretched_rhombus() -> (Vec<Vec2>, Vec<Vec3>) {
+        let position = vec![
+            Vec3::new(0.0, 0.0, 0.0),
+            Vec3::new(1.0, -0.5, 0.0),
+            Vec3::new(2.0, 0.0, 0.0),
+            Vec3::new(1.0, 0.5, 0.0),
+        ];
+        let uv: Vec<Vec2> = position.iter().map(|p| Vec2::new(p.x, 4.0 * p.y)).collect();
+        (uv, position)
+    }
+
+    #[test]
+    fn a_diagonal_long_in_3d_is_flipped_to_the_short_one() {
+        let (uv, position) = stretched_rhombus();
+        let geometry = FlipGeometry { uv: &uv, position: &position, normal_at: &up };
+        let mut tris = vec![[0, 1, 2], [0, 2, 3]];
+        assert_eq!(flip_toward_surface_shape(&geometry, &mut tris, &|_, _| false), 0);
+        assert_eq!(flip_to_delaunay_in_3d(&geometry, &mut tris, &|_, _| false), 1);
+        let mut edges: Vec<(usize, usize)> = tris
+            .iter()
+            .flat_map(|t| (0..3).map(move |i| (t[i].min(t[(i + 1) % 3]), t[i].max(t[(i + 1) % 3]))))
+            .collect();
+        edges.sort_unstable();
+        edges.dedup();
+        assert!(edges.contains(&(1, 3)) && !edges.contains(&(0, 2)), "{edges:?}");
+        for t in &tris {
+            assert!(orient2d(&uv[t[0]], &uv[t[1]], &uv[t[2]]) > 0.0, "{t:?} stays counter-clockwise in (u, v)");
+        }
+        // Delaunay now: nothing more to flip; a constrained diagonal stays.
+        assert_eq!(flip_to_delaunay_in_3d(&geometry, &mut tris, &|_, _| false), 0);
+        let mut tris = vec![[0, 1, 2], [0, 2, 3]];
+        assert_eq!(flip_to_delaunay_in_3d(&geometry, &mut tris, &|a, b| (a.min(b), a.max(b)) == (0, 2)), 0);
+    }
+
+    /// Against a surface facing the other way, both diagonals make folded
+    /// triangles: the 3D pass makes no flip that folds.
+    #[test]
+    fn a_flip_that_makes_a_folded_triangle_is_not_made() {
+        let (uv, position) = stretched_rhombus();
+        let down = |_: &Vec2| -Vec3::z();
+        let geometry = FlipGeometry { uv: &uv, position: &position, normal_at: &down };
+        let mut tris = vec![[0, 1, 2], [0, 2, 3]];
+        assert_eq!(flip_to_delaunay_in_3d(&geometry, &mut tris, &|_, _| false), 0);
+        assert_eq!(tris, vec![[0, 1, 2], [0, 2, 3]]);
+    }
+
+    /// A square cell (cocircular, opposite angles 90° + 90°) and a nearly
+    /// square one (within the margin) keep the diagonal the chart chose.
+    #[test]
+    fn near_cocircular_pairs_keep_their_diagonal() {
+        for skew in [0.0, 0.05] {
+            let position = vec![
+                Vec3::new(0.0, 0.0, 0.0),
+                Vec3::new(1.0, 0.0, 0.0),
+                Vec3::new(1.0 + skew, 1.0, 0.0),
+                Vec3::new(0.0, 1.0, 0.0),
+            ];
+            let uv: Vec<Vec2> = position.iter().map(|p| Vec2::new(p.x, p.y)).collect();
+            let geometry = FlipGeometry { uv: &uv, position: &position, normal_at: &up };
+            for diagonal in [vec![[0, 1, 2], [0, 2, 3]], vec![[0, 1, 3], [1, 2, 3]]] {
+                let mut tris = diagonal.clone();
+                assert_eq!(flip_to_delaunay_in_3d(&geometry, &mut tris, &|_, _| false), 0, "skew {skew}");
+                assert_eq!(tris, diagonal);
+            }
+        }
     }
 
     #[test]

@@ -24,7 +24,7 @@ use spade::{ConstrainedDelaunayTriangulation, Point2, Triangulation as _};
 
 use super::curves::{BoundaryMesh, discretize_boundaries};
 use super::error::QuadsError;
-use super::flips::{FlipGeometry, flip_toward_surface_shape};
+use super::flips::{FlipGeometry, flip_to_delaunay_in_3d, flip_toward_surface_shape};
 use super::insertion::{ChartPoint, insert_points};
 use super::model::QuadModel;
 use super::parity::ParityStats;
@@ -209,10 +209,10 @@ fn triangulate_patch(
 
     let direct = patch_is_direct(&chart, patch);
     // Delaunay in (u, v) is not Delaunay in 3D: where the chart distorts, a
-    // triangle may fold over in 3D. Edges next to a fold are flipped where
-    // that repairs it ([`flip_toward_surface_shape`]); the interior points of
-    // a triangle still folded are dropped and the patch triangulated again
-    // (a few rounds).
+    // triangle may be a sliver or fold over in 3D. Edges are flipped toward
+    // the Delaunay triangulation in 3D, then next to a fold where that
+    // repairs it ([`super::flips`]); the interior points of a triangle still
+    // folded are dropped and the patch triangulated again (a few rounds).
     let uv: Vec<Vec2> = points.iter().map(|p| p.uv).collect();
     let position: Vec<Vec3> = points.iter().map(|p| chart.position(p.tri, &p.bary)).collect();
     let orientation = if direct { 1.0 } else { -1.0 };
@@ -234,6 +234,7 @@ fn triangulate_patch(
             .into_iter()
             .map(|t| t.map(|v| active[v]))
             .collect();
+        flip_to_delaunay_in_3d(&geometry, &mut kept, &is_constrained);
         flip_toward_surface_shape(&geometry, &mut kept, &is_constrained);
         let mut again = false;
         for t in &kept {
