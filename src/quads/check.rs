@@ -6,8 +6,9 @@
 //! 1. `indices`: per-quad arrays as long as the quads, vertex indices in
 //!    range, 4 distinct corners per quad (`triangles`: no quad degenerates
 //!    to a triangle; the mesh has no other element).
-//! 2. `inverted`: scaled Jacobian > 0 at every quad (no inverted or
-//!    degenerate corner).
+//! 2. `inverted`: scaled Jacobian above
+//!    [`super::quality::DEGENERATE_SCALED_JACOBIAN`] at every quad (no
+//!    inverted or degenerate corner, flat within round-off included).
 //! 3. `conformity`: every edge in 1 or 2 quads; an edge of 2 quads is used
 //!    in opposite directions (consistent orientation); the edges of one
 //!    quad are exactly the edges of the mesh on boundary feature curves
@@ -27,7 +28,7 @@ use std::collections::HashSet;
 
 use super::error::QuadsError;
 use super::model::QuadModel;
-use super::quality::QuadQuality;
+use super::quality::{QuadQuality, is_inverted_or_degenerate};
 use super::surface_mesh::{ModelEntity, QuadMesh};
 use crate::geom::{Vec3, angle_between};
 use crate::mesh::components::{DisjointSets, connected_components};
@@ -106,9 +107,9 @@ fn centroid(mesh: &QuadMesh, q: &[u32; 4]) -> Vec3 {
     q.iter().map(|&v| mesh.vertices.positions[v as usize]).sum::<Vec3>() / 4.0
 }
 
-/// No quad with a scaled Jacobian ≤ 0 (or not a number).
+/// No quad inverted or degenerate ([`is_inverted_or_degenerate`]).
 fn check_inverted(mesh: &QuadMesh, quality: &QuadQuality) -> Result<(), QuadsError> {
-    match quality.scaled_jacobian.iter().position(|&j| j.is_nan() || j <= 0.0) {
+    match quality.scaled_jacobian.iter().position(|&j| is_inverted_or_degenerate(j)) {
         None => Ok(()),
         Some(k) => {
             let c = centroid(mesh, &mesh.quads[k]);
@@ -412,6 +413,16 @@ mod tests {
         let q = c.mesh.quads[0];
         c.mesh.vertices.positions[q[2] as usize] = c.mesh.vertices.positions[q[1] as usize];
         assert_eq!(failed_check(&c).0, "inverted");
+        // Flat within round-off: corner 1 moved onto the line of its two
+        // neighbours, to 1e-13 of it (a 180° corner, Gmsh's minSICN 0).
+        let mut c = case(fixtures::square_structured(3));
+        let q = c.mesh.quads[0];
+        let p = &mut c.mesh.vertices.positions;
+        let mid = (p[q[0] as usize] + p[q[2] as usize]) * 0.5;
+        let towards = (p[q[1] as usize] - mid).normalize();
+        p[q[1] as usize] = mid + towards * 1e-13;
+        let (check, detail) = failed_check(&c);
+        assert_eq!(check, "inverted", "{detail}");
         let mut c = case(fixtures::square_structured(3));
         c.mesh.quads[0][3] = c.mesh.quads[0][0];
         assert_eq!(failed_check(&c).0, "triangles");

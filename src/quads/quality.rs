@@ -29,6 +29,19 @@ use super::surface_mesh::QuadMesh;
 use crate::geom::{Vec3, angle_between};
 use crate::mesh::TriMesh;
 
+/// Scaled Jacobian at or below which a quad counts as inverted or
+/// degenerate: a corner whose sine is within round-off of 0 is flat (a 180°
+/// corner, three nodes on a line), which Gmsh rates minSICN 0; 10⁻⁹ is far
+/// above the round-off of `f64` shape measures (about 10⁻¹⁵) and far below
+/// any quad a mesh is meant to keep.
+pub const DEGENERATE_SCALED_JACOBIAN: f64 = 1e-9;
+
+/// True when a quad of scaled Jacobian `j` is inverted, degenerate or not
+/// measurable (NaN).
+pub fn is_inverted_or_degenerate(j: f64) -> bool {
+    j.is_nan() || j <= DEGENERATE_SCALED_JACOBIAN
+}
+
 /// Shape and topology measures of a quad mesh.
 #[derive(Debug, Clone, Default)]
 pub struct QuadQuality {
@@ -193,9 +206,10 @@ impl QuadQuality {
         h
     }
 
-    /// Quads whose scaled Jacobian is ≤ 0 (inverted or degenerate) or not a number.
+    /// Quads whose scaled Jacobian is at most [`DEGENERATE_SCALED_JACOBIAN`]
+    /// (inverted or degenerate) or not a number.
     pub fn n_inverted(&self) -> usize {
-        self.scaled_jacobian.iter().filter(|&&j| j.is_nan() || j <= 0.0).count()
+        self.scaled_jacobian.iter().filter(|&&j| is_inverted_or_degenerate(j)).count()
     }
 
     /// Quads whose scaled Jacobian is below `threshold`.

@@ -24,7 +24,7 @@ use spade::{ConstrainedDelaunayTriangulation, Point2, Triangulation as _};
 
 use super::curves::{BoundaryMesh, discretize_boundaries};
 use super::error::QuadsError;
-use super::flips::{FlipGeometry, flip_to_delaunay_in_3d, flip_toward_surface_shape};
+use super::flips::{FlipGeometry, flip_to_delaunay_in_3d, flip_toward_surface_shape, signed_shape};
 use super::insertion::{ChartPoint, insert_points};
 use super::model::QuadModel;
 use super::parity::ParityStats;
@@ -213,20 +213,22 @@ fn triangulate_patch(
     // the Delaunay triangulation in 3D, then next to a fold where that
     // repairs it ([`super::flips`]); the interior points of a triangle still
     // folded are dropped and the patch triangulated again (a few rounds).
-    let uv: Vec<Vec2> = points.iter().map(|p| p.uv).collect();
-    let position: Vec<Vec3> = points.iter().map(|p| chart.position(p.tri, &p.bary)).collect();
+    let mut uv: Vec<Vec2> = points.iter().map(|p| p.uv).collect();
+    let mut position: Vec<Vec3> = points.iter().map(|p| chart.position(p.tri, &p.bary)).collect();
     let orientation = if direct { 1.0 } else { -1.0 };
     let normal_at = |c: &Vec2| {
         chart
             .locate_near(c)
             .map_or_else(Vec3::zeros, |(lt, _)| surface.face_normal(chart.source_face(lt)) * orientation)
     };
-    let geometry = FlipGeometry { uv: &uv, position: &position, normal_at: &normal_at };
     let constrained: HashSet<(usize, usize)> = segments.iter().map(|&[a, b]| (a.min(b), a.max(b))).collect();
     let is_constrained = |a: usize, b: usize| constrained.contains(&(a.min(b), a.max(b)));
     let mut removed = vec![false; points.len()];
+    // Points added at reflex corners ([`corner_point`]): never dropped.
+    let mut corner_points: HashSet<usize> = HashSet::new();
     let mut kept = Vec::new();
-    for _ in 0..4 {
+    for round in 0..4 {
+        let geometry = FlipGeometry { uv: &uv, position: &position, normal_at: &normal_at };
         let active: Vec<usize> = (0..points.len()).filter(|&k| !removed[k]).collect();
         let subset: Vec<ChartPoint> = active.iter().map(|&k| points[k]).collect();
         kept = constrained_delaunay(&subset, nb, &segments)
@@ -237,15 +239,27 @@ fn triangulate_patch(
         flip_to_delaunay_in_3d(&geometry, &mut kept, &is_constrained);
         flip_toward_surface_shape(&geometry, &mut kept, &is_constrained);
         let mut again = false;
+        let mut splits = Vec::new();
         for t in &kept {
             if !is_upright(&chart, surface, &points, &position, t, direct) {
                 for &v in t {
-                    if v >= nb + n_singular {
+                    if v >= nb + n_singular && !corner_points.contains(&v) {
                         removed[v] = true;
                         again = true;
                     }
                 }
+                if round < 3 {
+                    splits.extend(corner_point(&chart, surface, &points, &position, t, direct, &is_constrained));
+                }
             }
+        }
+        for q in splits {
+            corner_points.insert(points.len());
+            uv.push(q.uv);
+            position.push(chart.position(q.tri, &q.bary));
+            points.push(q);
+            removed.push(false);
+            again = true;
         }
         if !again {
             break;
@@ -302,6 +316,55 @@ fn is_upright(
     let Some((lt, _)) = chart.locate_near(&c) else { return true };
     let a = (p[1] - p[0]).cross(&(p[2] - p[0])).dot(&surface.face_normal(chart.source_face(lt)));
     if direct { a > 0.0 } else { a < 0.0 }
+}
+
+/// Radii, as fractions of the ear, at which [`corner_point`] looks.
+const CORNER_POINT_RADII: [f64; 4] = [0.2, 0.35, 0.5, 0.65];
+
+/// Directions between the ear's two sides at which [`corner_point`] looks
+/// (this many intervals; the chart squeezes a reflex corner's neighbourhood,
+/// so the direction that is the corner's bisector on the surface can lie
+/// close to one side in `(u, v)`).
+const CORNER_POINT_DIRECTIONS: usize = 16;
+
+/// A point that splits the corner of the folded triangle `t` (counter-clockwise
+/// in `(u, v)`) whose two sides at it are boundary segments, if `t` has such
+/// a corner: the ear a constrained Delaunay triangulation cuts off a corner
+/// whose angle on the surface is reflex while the chart made it convex. One
+/// triangle cannot cover a reflex angle, and dropping interior points cannot
+/// give the corner a second one. The point lies on the segment from the
+/// corner to the midpoint of the opposite side (nearest the corner first)
+/// where both triangles it makes with the corner's sides are upright in 3D;
+/// the next round's triangulation and flips then connect it.
+fn corner_point(
+    chart: &PatchChart,
+    surface: &TriMesh,
+    points: &[ChartPoint],
+    position: &[Vec3],
+    t: &[usize; 3],
+    direct: bool,
+    is_constrained: &dyn Fn(usize, usize) -> bool,
+) -> Option<ChartPoint> {
+    let i = (0..3).find(|&i| is_constrained(t[i], t[(i + 1) % 3]) && is_constrained(t[(i + 2) % 3], t[i]))?;
+    let (a, b, c) = (t[i], t[(i + 1) % 3], t[(i + 2) % 3]);
+    let (pa, pb, pc) = (points[a].uv, points[b].uv, points[c].uv);
+    let sign = if direct { 1.0 } else { -1.0 };
+    let mut best: Option<(f64, ChartPoint)> = None;
+    for r in CORNER_POINT_RADII {
+        for k in 1..CORNER_POINT_DIRECTIONS {
+            let w = k as f64 / CORNER_POINT_DIRECTIONS as f64;
+            let q = pa + ((pb - pa) * (1.0 - w) + (pc - pa) * w) * r;
+            let Some((tri, bary)) = chart.locate(&q) else { continue };
+            let x = chart.position(tri, &bary);
+            let n = surface.face_normal(chart.source_face(tri)) * sign;
+            let shape =
+                signed_shape(&position[a], &position[b], &x, &n).min(signed_shape(&position[c], &position[a], &x, &n));
+            if shape > best.as_ref().map_or(0.0, |(s, _)| *s) {
+                best = Some((shape, ChartPoint { uv: q, tri, bary }));
+            }
+        }
+    }
+    best.map(|(_, p)| p)
 }
 
 /// True when the patch's chart keeps the surface's orientation on most of
