@@ -332,10 +332,11 @@ const CORNER_POINT_DIRECTIONS: usize = 16;
 /// a corner: the ear a constrained Delaunay triangulation cuts off a corner
 /// whose angle on the surface is reflex while the chart made it convex. One
 /// triangle cannot cover a reflex angle, and dropping interior points cannot
-/// give the corner a second one. The point lies on the segment from the
-/// corner to the midpoint of the opposite side (nearest the corner first)
-/// where both triangles it makes with the corner's sides are upright in 3D;
-/// the next round's triangulation and flips then connect it.
+/// give the corner a second one. Of the points at [`CORNER_POINT_RADII`] ×
+/// [`CORNER_POINT_DIRECTIONS`] between the corner's two sides in `(u, v)`,
+/// the one whose two triangles with those sides have the largest worse
+/// signed shape in 3D (which must be positive); the next round's
+/// triangulation and flips connect it.
 fn corner_point(
     chart: &PatchChart,
     surface: &TriMesh,
