@@ -256,7 +256,8 @@ impl Store {
     }
 
     /// Inserts a queued job, unless `max_queued` jobs are already queued.
-    /// Returns `None` when the queue is full.
+    /// Returns the record as inserted (state `queued`, whatever a worker
+    /// does right after), `None` when the queue is full.
     ///
     /// # Errors
     /// [`StoreError`] on database failure.
@@ -293,9 +294,11 @@ impl Store {
                 tenant
             ],
         )?;
+        // Read back inside the transaction: the record as inserted (queued),
+        // even when the dispatcher claims the job right after the commit.
+        let raw = tx.query_row(&format!("SELECT {COLUMNS} FROM jobs WHERE id = ?1"), [id.to_string()], RawRow::read)?;
         tx.commit()?;
-        drop(conn);
-        self.get(id)
+        raw.into_record().map(Some)
     }
 
     /// The job with `id`, if it exists.
