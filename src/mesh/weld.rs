@@ -141,8 +141,11 @@ pub fn tolerance_candidates(triangles: &[[u32; 3]], positions: &[Vec3], toleranc
     let seed = foldhash::fast::RandomState::default().hash_one(0u64) | (1 << 63);
     let h = |v: u32| mix64(seed ^ u64::from(v));
     let tol2 = tolerance * tolerance;
-    let threads = rayon::current_num_threads().max(1);
-    let per = triangles.len().div_ceil(threads).max(1);
+    // One word array per chunk: at most MAX_PARITY_CHUNKS of them (memory
+    // is 8 bytes per vertex each), and at least PARITY_CHUNK_MIN triangles
+    // per chunk.
+    let chunks = rayon::current_num_threads().clamp(1, MAX_PARITY_CHUNKS);
+    let per = triangles.len().div_ceil(chunks).max(PARITY_CHUNK_MIN);
     let (words, mut short) = triangles
         .par_chunks(per)
         .map(|chunk| {
@@ -180,6 +183,13 @@ pub fn tolerance_candidates(triangles: &[[u32; 3]], positions: &[Vec3], toleranc
     }
     out
 }
+
+/// Most word arrays [`tolerance_candidates`] fills side by side.
+const MAX_PARITY_CHUNKS: usize = 4;
+
+/// Fewest triangles per chunk of [`tolerance_candidates`] (below, one array
+/// is cheaper than combining several).
+const PARITY_CHUNK_MIN: usize = 1 << 16;
 
 /// The 64-bit finalizer of SplitMix64: a bijection with good avalanche,
 /// `mix64(0) = 0`.
