@@ -21,7 +21,7 @@
 //! also how mesh-repair tools close cracks (admesh's `--nearby` matches only
 //! unconnected facet edges), and it makes the tolerance weld of a closed
 //! upload one pass over its triangles.
-//! Candidates come from a spatial hash grid of cell size
+//! Close pairs among the candidates come from a spatial hash grid of cell size
 //! `h = 8δ`: for a point only the cells overlapping the box `p ± 1.01δ` are
 //! visited (one to eight, about two on average). The cells are matched by
 //! grouping equal cell keys, not by one lookup per point in a global table,
@@ -36,7 +36,7 @@
 //! a few δ of each other) would make the pair scan quadratic; to keep a
 //! hostile upload from stalling a worker, the scan stops after
 //! `64·n + 10⁶` distance checks and the tolerance weld is abandoned (the
-//! exact weld stands) and reported as such ([`Weld::tolerance_weld_abandoned`]).
+//! exact weld stands) and reported as such ([`Weld::abandoned`]).
 //!
 //! A relative tolerance below 1e-14 (or not finite) is treated as 0: such a
 //! δ is below the resolution of `f64` coordinates at model scale, where only
