@@ -249,7 +249,7 @@ fn triangulate_patch(
                     }
                 }
                 if round < 3 {
-                    splits.extend(corner_point(&chart, surface, &points, &position, t, direct, &is_constrained));
+                    splits.extend(corner_point(&chart, &normal_at, &points, &position, t, &is_constrained));
                 }
             }
         }
@@ -337,19 +337,19 @@ const CORNER_POINT_DIRECTIONS: usize = 16;
 /// the one whose two triangles with those sides have the largest worse
 /// signed shape in 3D (which must be positive); the next round's
 /// triangulation and flips connect it.
+/// `normal_at` is the oriented surface normal at a `(u, v)` location, as
+/// the flips use it.
 fn corner_point(
     chart: &PatchChart,
-    surface: &TriMesh,
+    normal_at: &dyn Fn(&Vec2) -> Vec3,
     points: &[ChartPoint],
     position: &[Vec3],
     t: &[usize; 3],
-    direct: bool,
     is_constrained: &dyn Fn(usize, usize) -> bool,
 ) -> Option<ChartPoint> {
     let i = (0..3).find(|&i| is_constrained(t[i], t[(i + 1) % 3]) && is_constrained(t[(i + 2) % 3], t[i]))?;
     let (a, b, c) = (t[i], t[(i + 1) % 3], t[(i + 2) % 3]);
     let (pa, pb, pc) = (points[a].uv, points[b].uv, points[c].uv);
-    let sign = if direct { 1.0 } else { -1.0 };
     let mut best: Option<(f64, ChartPoint)> = None;
     for r in CORNER_POINT_RADII {
         for k in 1..CORNER_POINT_DIRECTIONS {
@@ -357,7 +357,7 @@ fn corner_point(
             let q = pa + ((pb - pa) * (1.0 - w) + (pc - pa) * w) * r;
             let Some((tri, bary)) = chart.locate(&q) else { continue };
             let x = chart.position(tri, &bary);
-            let n = surface.face_normal(chart.source_face(tri)) * sign;
+            let n = normal_at(&q);
             let shape =
                 signed_shape(&position[a], &position[b], &x, &n).min(signed_shape(&position[c], &position[a], &x, &n));
             if shape > best.as_ref().map_or(0.0, |(s, _)| *s) {
