@@ -1,4 +1,4 @@
-//! Command-line entry point: `meshatlas serve` and `meshatlas run`.
+//! Command-line entry point: `meshatlas serve`, `meshatlas worker` and `meshatlas run`.
 //!
 //! Parses flags (each also readable from a `MESHATLAS_*` environment
 //! variable), builds the configuration and calls the library.
@@ -14,7 +14,7 @@ use clap::{Args, Parser, Subcommand, value_parser};
 use meshatlas::http::auth::Auth;
 use meshatlas::http::{AppState, HttpLimits};
 use meshatlas::jobs::{
-    Delayed, Executor, JobService, JobsConfig, Quotas, Retention, Stalled, parse_retention,
+    Delayed, Executor, JobService, JobsConfig, Quotas, Retention, Stalled, StoreLocation, parse_retention,
     pipeline_executor::PipelineExecutor,
 };
 use meshatlas::pipeline::{PipelineParams, StageName, parse_params, run_pipeline};
@@ -29,21 +29,27 @@ struct Cli {
 
 #[derive(Subcommand)]
 enum Command {
-    /// Run the HTTP job service.
+    /// Run the HTTP job service (and, unless --no-worker, a worker).
     Serve(ServeArgs),
+    /// Run a worker: claims and runs jobs from the shared store; serves only
+    /// /healthz and /metrics.
+    Worker(WorkerArgs),
     /// Run the pipeline on one file, offline.
     Run(RunArgs),
 }
 
+/// Settings of the job machinery, shared by `serve` and `worker`.
 #[derive(Args)]
-struct ServeArgs {
-    /// Address to listen on (port 0 picks a free port; the bound address is
-    /// printed as `listening on ADDR`).
-    #[arg(long, env = "MESHATLAS_ADDR", default_value = "127.0.0.1:8080", value_parser = parse_addr)]
-    addr: String,
-    /// Directory for the job database, uploads and artifacts.
+struct JobArgs {
+    /// Directory for uploads and artifacts (and the embedded job database);
+    /// every API and worker process sharing a store must see the same one.
     #[arg(long, env = "MESHATLAS_DATA_DIR", default_value = "./data")]
     data_dir: PathBuf,
+    /// The job store: `sqlite://DIR` (embedded; default: the data
+    /// directory) or `postgres://USER@HOST:PORT/DB` (shared by any number of
+    /// API and worker processes).
+    #[arg(long, env = "MESHATLAS_STORE", value_parser = StoreLocation::parse)]
+    store: Option<StoreLocation>,
     /// Jobs run at the same time (1–1024).
     #[arg(
         long, env = "MESHATLAS_WORKERS", default_value_t = 1,
@@ -57,18 +63,6 @@ struct ServeArgs {
         value_parser = RangedU64ValueParser::<usize>::new().range(0..=1024)
     )]
     threads: usize,
-    /// Largest accepted upload in bytes (413 beyond; at least 1).
-    #[arg(
-        long, env = "MESHATLAS_MAX_UPLOAD_BYTES", default_value_t = 512 * 1024 * 1024,
-        value_parser = value_parser!(u64).range(1..)
-    )]
-    max_upload_bytes: u64,
-    /// Most jobs waiting in the queue (429 beyond; 1–1000000).
-    #[arg(
-        long, env = "MESHATLAS_MAX_QUEUED", default_value_t = 64,
-        value_parser = RangedU64ValueParser::<usize>::new().range(1..=1_000_000)
-    )]
-    max_queued: usize,
     /// Server-wide triangle cap (jobs above fail with too-many-triangles;
     /// 1–4294967295).
     #[arg(
@@ -81,16 +75,70 @@ struct ServeArgs {
     #[arg(long, env = "MESHATLAS_MAX_TETS", default_value_t = 2_000_000, value_parser = clap::value_parser!(u64).range(1..))]
     max_tets: u64,
     /// Memory the running jobs' estimated peaks may add up to (e.g. 16GiB,
-    /// 512MiB, bytes); a job estimated above it is refused with 422.
-    /// Default: 75 % of physical memory (or of the cgroup limit if smaller).
+    /// 512MiB, bytes). A process that runs jobs claims only jobs that fit
+    /// it; `serve` refuses with 422 a job estimated above it. Default: 75 %
+    /// of physical memory (or of the cgroup limit if smaller); unlimited for
+    /// `serve --no-worker`, which leaves the choice to the workers.
     #[arg(long, env = "MESHATLAS_MEMORY_BUDGET", value_parser = meshatlas::jobs::memory::parse_byte_size)]
     memory_budget: Option<u64>,
     /// Wall-time limit of one job, in seconds (0 < secs <= 31536000, one year).
     #[arg(long, env = "MESHATLAS_JOB_TIMEOUT_SECS", default_value_t = 3600.0, value_parser = parse_job_timeout)]
     job_timeout_secs: f64,
-    /// Times a job may be interrupted by a crash before it is failed (1–100).
+    /// Times a job may be claimed before an interruption fails it (1–100).
     #[arg(long, env = "MESHATLAS_MAX_ATTEMPTS", default_value_t = 3, value_parser = value_parser!(u32).range(1..=100))]
     max_attempts: u32,
+    /// Seconds a worker holds a job without a heartbeat before another
+    /// worker may take it (0.1–3600).
+    #[arg(long, env = "MESHATLAS_LEASE_SECS", default_value_t = 30.0, value_parser = parse_lease)]
+    lease_secs: f64,
+    /// Seconds between two heartbeats of a running job, which renew its
+    /// lease and read cancel requests (at most a third of the lease).
+    #[arg(long, env = "MESHATLAS_HEARTBEAT_SECS", default_value_t = 3.0, value_parser = parse_lease)]
+    heartbeat_secs: f64,
+    /// Testing only: wait this long (cancellably) before each job, so tests
+    /// can kill the server mid-job.
+    #[arg(long, env = "MESHATLAS_TEST_JOB_DELAY_MS", hide = true)]
+    test_job_delay_ms: Option<u64>,
+    /// Testing only: ignore cancellation this long at the start of each job,
+    /// so tests see a stop that is pending.
+    #[arg(long, env = "MESHATLAS_TEST_STALL_MS", hide = true)]
+    test_stall_ms: Option<u64>,
+}
+
+#[derive(Args)]
+struct WorkerArgs {
+    /// Address of /healthz and /metrics (port 0 picks a free port; the bound
+    /// address is printed as `listening on ADDR`). They show no job data.
+    #[arg(long, env = "MESHATLAS_WORKER_ADDR", default_value = "127.0.0.1:9090", value_parser = parse_addr)]
+    addr: String,
+    #[command(flatten)]
+    jobs: JobArgs,
+}
+
+#[derive(Args)]
+struct ServeArgs {
+    /// Address to listen on (port 0 picks a free port; the bound address is
+    /// printed as `listening on ADDR`).
+    #[arg(long, env = "MESHATLAS_ADDR", default_value = "127.0.0.1:8080", value_parser = parse_addr)]
+    addr: String,
+    #[command(flatten)]
+    jobs: JobArgs,
+    /// Serve the API only: run no jobs (workers started with `meshatlas
+    /// worker` on the same store run them).
+    #[arg(long, env = "MESHATLAS_NO_WORKER", value_parser = clap::builder::BoolishValueParser::new())]
+    no_worker: bool,
+    /// Largest accepted upload in bytes (413 beyond; at least 1).
+    #[arg(
+        long, env = "MESHATLAS_MAX_UPLOAD_BYTES", default_value_t = 512 * 1024 * 1024,
+        value_parser = value_parser!(u64).range(1..)
+    )]
+    max_upload_bytes: u64,
+    /// Most jobs waiting in the queue (429 beyond; 1–1000000).
+    #[arg(
+        long, env = "MESHATLAS_MAX_QUEUED", default_value_t = 64,
+        value_parser = RangedU64ValueParser::<usize>::new().range(1..=1_000_000)
+    )]
+    max_queued: usize,
     /// Retry-After seconds sent with 429 (0–86400).
     #[arg(
         long, env = "MESHATLAS_RETRY_AFTER_SECS", default_value_t = 10,
@@ -117,14 +165,6 @@ struct ServeArgs {
         value_parser = value_parser!(u64).range(0..=3600)
     )]
     shutdown_grace_secs: u64,
-    /// Testing only: wait this long (cancellably) before each job, so tests
-    /// can kill the server mid-job.
-    #[arg(long, env = "MESHATLAS_TEST_JOB_DELAY_MS", hide = true)]
-    test_job_delay_ms: Option<u64>,
-    /// Testing only: ignore cancellation this long at the start of each job,
-    /// so tests see a stop that is pending.
-    #[arg(long, env = "MESHATLAS_TEST_STALL_MS", hide = true)]
-    test_stall_ms: Option<u64>,
     /// File of `token tenant` lines: every route but /healthz then needs
     /// `Authorization: Bearer TOKEN`, and jobs belong to the token's tenant.
     /// Reloaded on SIGHUP.
@@ -195,6 +235,11 @@ fn main() -> std::process::ExitCode {
             meshatlas::jobs::install_panic_hook();
             serve(args)
         }
+        Command::Worker(args) => {
+            init_logging();
+            meshatlas::jobs::install_panic_hook();
+            worker(args)
+        }
         Command::Run(args) => {
             if std::env::var_os("MESHATLAS_LOG").is_some() || std::env::var_os("RUST_LOG").is_some() {
                 init_logging();
@@ -211,36 +256,78 @@ fn main() -> std::process::ExitCode {
     }
 }
 
-fn serve(args: ServeArgs) -> Result<(), String> {
-    let config = JobsConfig {
+/// The job configuration of the shared flags; `run_jobs` says whether this
+/// process claims jobs.
+fn jobs_config(args: &JobArgs, run_jobs: bool) -> Result<JobsConfig, String> {
+    let lease = Duration::from_secs_f64(args.lease_secs);
+    let heartbeat = Duration::from_secs_f64(args.heartbeat_secs);
+    if heartbeat * 3 > lease {
+        return Err(format!(
+            "--heartbeat-secs {} must be at most a third of --lease-secs {}, so one late heartbeat does not lose the lease",
+            args.heartbeat_secs, args.lease_secs
+        ));
+    }
+    let store = args.store.clone().unwrap_or_else(|| StoreLocation::Sqlite(args.data_dir.clone()));
+    // A notification wakes PostgreSQL workers, so they need not poll often.
+    let poll_interval = Duration::from_millis(if matches!(store, StoreLocation::Postgres(_)) { 1000 } else { 100 });
+    let memory_budget = match args.memory_budget {
+        Some(b) => b,
+        None if run_jobs => meshatlas::jobs::memory::default_memory_budget(),
+        None => u64::MAX,
+    };
+    Ok(JobsConfig {
         workers: args.workers.max(1),
         threads: args.threads,
-        max_queued: args.max_queued,
         job_timeout: Duration::from_secs_f64(args.job_timeout_secs),
         max_attempts: args.max_attempts.max(1),
         max_triangles: args.max_triangles,
         max_tets: usize::try_from(args.max_tets).unwrap_or(usize::MAX),
-        memory_budget: args.memory_budget.unwrap_or_else(meshatlas::jobs::memory::default_memory_budget),
-        quotas: quotas(&args)?,
-        retention: Retention {
-            max_age: args.retention,
-            sweep_interval: Duration::from_millis(args.test_retention_sweep_ms.unwrap_or(60_000).max(1)),
-        },
+        memory_budget,
+        store,
+        run_jobs,
+        lease,
+        heartbeat,
+        poll_interval,
         ..JobsConfig::new(&args.data_dir)
-    };
-    tracing::info!(memory_budget = config.memory_budget, max_tets = config.max_tets, "memory admission");
-    let auth = auth_setup(&args)?;
+    })
+}
+
+/// The executor jobs run: the pipeline, wrapped by the testing-only delays.
+fn executor(args: &JobArgs) -> Arc<dyn Executor> {
     let executor: Arc<dyn Executor> = match args.test_job_delay_ms {
         Some(ms) => Arc::new(Delayed { inner: PipelineExecutor, delay: Duration::from_millis(ms) }),
         None => Arc::new(PipelineExecutor),
     };
-    let executor: Arc<dyn Executor> = match args.test_stall_ms {
+    match args.test_stall_ms {
         Some(ms) => {
             let inner = move |job: &meshatlas::jobs::JobInput, p: &Progress| executor.execute(job, p);
             Arc::new(Stalled { inner, stall: Duration::from_millis(ms) })
         }
         None => executor,
+    }
+}
+
+/// A multi-threaded tokio runtime.
+fn runtime() -> Result<tokio::runtime::Runtime, String> {
+    tokio::runtime::Builder::new_multi_thread()
+        .enable_all()
+        .build()
+        .map_err(|e| format!("cannot start the async runtime: {e}"))
+}
+
+fn serve(args: ServeArgs) -> Result<(), String> {
+    let config = JobsConfig {
+        max_queued: args.max_queued,
+        quotas: quotas(&args)?,
+        retention: Retention {
+            max_age: args.retention,
+            sweep_interval: Duration::from_millis(args.test_retention_sweep_ms.unwrap_or(60_000).max(1)),
+        },
+        ..jobs_config(&args.jobs, !args.no_worker)?
     };
+    tracing::info!(memory_budget = config.memory_budget, max_tets = config.max_tets, "memory admission");
+    let auth = auth_setup(&args)?;
+    let executor = executor(&args.jobs);
     let limits = HttpLimits {
         max_upload_bytes: args.max_upload_bytes,
         retry_after_secs: args.retry_after_secs,
@@ -248,11 +335,7 @@ fn serve(args: ServeArgs) -> Result<(), String> {
         body_idle_timeout: Duration::from_secs(args.body_idle_timeout_secs),
         shutdown_grace: Duration::from_secs(args.shutdown_grace_secs),
     };
-    let rt = tokio::runtime::Builder::new_multi_thread()
-        .enable_all()
-        .build()
-        .map_err(|e| format!("cannot start the async runtime: {e}"))?;
-    rt.block_on(async move {
+    runtime()?.block_on(async move {
         let jobs = JobService::start(config, executor).map_err(|e| e.to_string())?;
         // Before `listening on` is printed, so a SIGHUP right after start reloads instead of killing.
         if let Some(a) = &auth {
@@ -269,6 +352,36 @@ fn serve(args: ServeArgs) -> Result<(), String> {
         jobs.shutdown(Duration::from_secs(10)).await;
         Ok(())
     })
+}
+
+/// `meshatlas worker`: runs jobs of the shared store and serves /healthz
+/// and /metrics until SIGTERM, then puts its running jobs back in the queue.
+fn worker(args: WorkerArgs) -> Result<(), String> {
+    let config = jobs_config(&args.jobs, true)?;
+    tracing::info!(memory_budget = config.memory_budget, store = %config.store.redacted(), "worker");
+    let executor = executor(&args.jobs);
+    runtime()?.block_on(async move {
+        let jobs = JobService::start(config, executor).map_err(|e| e.to_string())?;
+        let listener = tokio::net::TcpListener::bind(&args.addr)
+            .await
+            .map_err(|e| format!("cannot listen on {}: {e}", args.addr))?;
+        let addr = listener.local_addr().map_err(|e| e.to_string())?;
+        println!("listening on {addr}");
+        tracing::info!(%addr, "worker listening (healthz and metrics)");
+        let state = AppState { jobs: jobs.clone(), limits: Arc::new(HttpLimits::default()), auth: None };
+        meshatlas::http::serve_worker(listener, state, shutdown_signal()).await.map_err(|e| e.to_string())?;
+        jobs.shutdown(Duration::from_secs(10)).await;
+        Ok(())
+    })
+}
+
+/// `--lease-secs`, `--heartbeat-secs`: finite seconds in [0.1, 3600].
+fn parse_lease(s: &str) -> Result<f64, String> {
+    let secs: f64 = s.trim().parse().map_err(|_| format!("`{s}` is not a number"))?;
+    if !(secs.is_finite() && (0.1..=3600.0).contains(&secs)) {
+        return Err("must be a number of seconds in [0.1, 3600]".into());
+    }
+    Ok(secs)
 }
 
 /// The stored-bytes and per-tenant limits of the flags (per-tenant ones

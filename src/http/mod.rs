@@ -115,6 +115,30 @@ pub fn router(state: AppState) -> Router {
         .with_state(state)
 }
 
+/// The router of a worker process: `/healthz` and `/metrics` only.
+pub fn worker_router(state: AppState) -> Router {
+    Router::new()
+        .route("/healthz", get(handlers::healthz))
+        .route("/metrics", get(handlers::metrics))
+        .fallback(handlers::not_found)
+        .layer(tower_http::catch_panic::CatchPanicLayer::new())
+        .layer(axum::middleware::from_fn(error::request_context))
+        .with_state(state)
+}
+
+/// Serves a worker's [`worker_router`] on `listener` until `shutdown` resolves.
+///
+/// # Errors
+/// The listener's I/O error.
+pub async fn serve_worker(
+    listener: tokio::net::TcpListener,
+    state: AppState,
+    shutdown: impl Future<Output = ()> + Send + 'static,
+) -> std::io::Result<()> {
+    let limits = state.limits.clone();
+    server::serve(listener, worker_router(state), limits, shutdown).await
+}
+
 /// Serves the API on `listener` until `shutdown` resolves, then lets
 /// in-flight requests finish for at most [`HttpLimits::shutdown_grace`].
 ///

@@ -69,6 +69,8 @@ struct Counters {
     stage: BTreeMap<String, Histogram>,
     job: Histogram,
     panics: u64,
+    claims: u64,
+    leases_expired: u64,
 }
 
 /// Values read from the store at scrape time.
@@ -110,6 +112,16 @@ impl Metrics {
         self.lock().panics += 1;
     }
 
+    /// Records a job claimed by this process.
+    pub fn job_claimed(&self) {
+        self.lock().claims += 1;
+    }
+
+    /// Records `n` jobs this process took back after their lease expired.
+    pub fn leases_expired(&self, n: usize) {
+        self.lock().leases_expired += n as u64;
+    }
+
     /// Renders every metric in the Prometheus text format.
     pub fn render(&self, g: &Gauges) -> String {
         let c = self.lock();
@@ -138,6 +150,16 @@ impl Metrics {
              # TYPE meshatlas_job_panics_total counter\n",
         );
         let _ = writeln!(out, "meshatlas_job_panics_total {}", c.panics);
+        out.push_str(
+            "# HELP meshatlas_claims_total Jobs this process claimed since start.\n\
+             # TYPE meshatlas_claims_total counter\n",
+        );
+        let _ = writeln!(out, "meshatlas_claims_total {}", c.claims);
+        out.push_str(
+            "# HELP meshatlas_lease_expiries_total Jobs this process took back after their worker's lease expired.\n\
+             # TYPE meshatlas_lease_expiries_total counter\n",
+        );
+        let _ = writeln!(out, "meshatlas_lease_expiries_total {}", c.leases_expired);
         out.push_str(
             "# HELP meshatlas_job_duration_seconds Wall time of finished jobs.\n\
              # TYPE meshatlas_job_duration_seconds histogram\n",

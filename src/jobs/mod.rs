@@ -1,7 +1,9 @@
 //! Durable jobs: model, SQLite store, runner bridging tokio and the rayon pool.
 //!
 //! - [`model`]: ids (random UUID v4), states, records, errors, artifacts.
-//! - [`store`]: SQLite (WAL) records; the queue is the `queued` rows.
+//! - [`store`]: the job records ([`JobStore`]), which are also the queue;
+//!   [`sqlite_store`] (embedded) and [`pg_store`] (PostgreSQL) keep them,
+//!   with leases held under a [`worker_name`].
 //! - [`runner`]: dispatcher thread, rayon workers, time limit, progress.
 //! - [`service`]: [`JobService`], the async API the HTTP layer calls.
 //! - [`executor`]: what a worker runs ([`Executor`]); the service runs
@@ -19,13 +21,18 @@ pub mod executor;
 pub mod memory;
 pub mod metrics;
 pub mod model;
+pub mod pg_store;
 pub mod pipeline_executor;
 pub mod quota;
 pub mod retention;
 pub mod runner;
 pub mod service;
+pub mod sqlite_store;
 pub mod storage;
 pub mod store;
+#[cfg(test)]
+mod store_conformance;
+pub mod worker_name;
 
 pub use executor::{Delayed, ExecError, Executor, JobInput, JobOutcome, Stalled};
 pub use model::{Artifact, JobError, JobId, JobPage, JobRecord, JobState, NewJob};
@@ -33,7 +40,8 @@ pub use quota::Quotas;
 pub use retention::{Retention, parse_retention};
 pub use runner::JobsConfig;
 pub use service::{Deletion, JobService, JobsError};
-pub use store::{Store, StoreError};
+pub use sqlite_store::SqliteStore;
+pub use store::{JobStore, Lease, StoreError, StoreLocation};
 
 /// Installs a panic hook that logs panics through `tracing` (with the
 /// current job span, so the log names the job) instead of printing to

@@ -9,7 +9,7 @@
 //! both take the last free bytes.
 
 use super::service::JobsError;
-use super::store::Store;
+use super::store::JobStore;
 
 /// Limits applied when a job is submitted (all off by default).
 #[derive(Debug, Clone, Default)]
@@ -29,7 +29,7 @@ pub struct Quotas {
 /// [`JobsError::TenantQueueFull`], [`JobsError::QuotaExceeded`], or
 /// [`JobsError::Store`] on database failure.
 pub(crate) fn check_admission(
-    store: &Store,
+    store: &dyn JobStore,
     quotas: &Quotas,
     tenant: Option<&str>,
     incoming: u64,

@@ -1,10 +1,17 @@
 //! The runner: a dispatcher thread that claims queued jobs from the store and
 //! runs them on a rayon pool of `workers` threads, a watchdog for the per-job
-//! time limit, progress persistence and the end-of-job bookkeeping.
+//! time limit, the heartbeat (progress, lease renewal, cancel requests) and
+//! the end-of-job bookkeeping.
 //!
 //! Concurrency is bounded by claiming at most `workers` jobs at a time; the
-//! queue itself is the `queued` rows of the store, so it survives restarts.
-//! Every job runs inside `catch_unwind`: a panic fails that job only.
+//! queue itself is the `queued` rows of the store, so it survives restarts
+//! and is shared by every worker process on the same store. Every job runs
+//! inside `catch_unwind`: a panic fails that job only.
+//!
+//! Each attempt writes its artifacts to its own directory `out/<attempt>/`,
+//! so a late attempt whose lease was lost (a paused or partitioned worker)
+//! cannot overwrite the files of the attempt that replaced it; the winning
+//! attempt's record names its directory (`attempts`), and losers' are removed.
 //!
 //! Memory admission: a job starts only when its peak-memory estimate fits
 //! beside the estimates of the running jobs within the memory budget (a job
@@ -36,7 +43,8 @@ use super::executor::{ExecError, Executor, JobInput, JobOutcome};
 use super::metrics::Metrics;
 use super::model::{Artifact, JobError, JobId, JobRecord, JobState};
 use super::storage;
-use super::store::{QueueHead, Store, StoreError};
+use super::store::{Heartbeat, JobStore, Lease, ProgressRow, QueueHead, StoreError, StoreLocation};
+use super::worker_name::WorkerName;
 
 /// Settings of the job service.
 #[derive(Debug, Clone)]
@@ -70,13 +78,28 @@ pub struct JobsConfig {
     pub quotas: super::quota::Quotas,
     /// Expiry of finished jobs. Default: kept forever.
     pub retention: super::retention::Retention,
+    /// Where the job records live. Default: SQLite in `data_dir`.
+    pub store: StoreLocation,
+    /// Whether this process claims and runs jobs (false: API only). Default true.
+    pub run_jobs: bool,
+    /// Lease of a claimed job, renewed by its heartbeats; a job whose lease
+    /// expires is taken by another worker. Default 30 s.
+    pub lease: Duration,
+    /// Interval between two heartbeats of a running job (at most a third of
+    /// the lease). Default 3 s.
+    pub heartbeat: Duration,
+    /// Interval between two looks at the queue when nothing woke the
+    /// dispatcher (a submission on this process, a job's end or a
+    /// PostgreSQL notification wakes it at once). Default 100 ms.
+    pub poll_interval: Duration,
 }
 
 impl JobsConfig {
     /// Defaults with the given data directory.
     pub fn new(data_dir: impl Into<PathBuf>) -> Self {
+        let data_dir = data_dir.into();
         Self {
-            data_dir: data_dir.into(),
+            data_dir: data_dir.clone(),
             workers: 1,
             threads: 0,
             max_queued: 64,
@@ -88,6 +111,11 @@ impl JobsConfig {
             progress_interval: Duration::from_millis(250),
             quotas: Default::default(),
             retention: Default::default(),
+            store: StoreLocation::Sqlite(data_dir.clone()),
+            run_jobs: true,
+            lease: Duration::from_secs(30),
+            heartbeat: Duration::from_secs(3),
+            poll_interval: Duration::from_millis(100),
         }
     }
 
@@ -96,9 +124,21 @@ impl JobsConfig {
         self.data_dir.join("jobs").join(id.to_string())
     }
 
-    /// Directory of a job's artifacts.
-    pub fn out_dir(&self, id: JobId) -> PathBuf {
+    /// Directory of every attempt's artifacts of a job.
+    pub fn out_root(&self, id: JobId) -> PathBuf {
         self.job_dir(id).join("out")
+    }
+
+    /// Directory of the artifacts of one attempt of a job.
+    pub fn attempt_dir(&self, id: JobId, attempt: u32) -> PathBuf {
+        self.out_root(id).join(attempt.to_string())
+    }
+
+    /// The file of artifact `name` of a job that ended in `attempt`; jobs
+    /// stored before attempts had directories have it directly in `out/`.
+    pub fn artifact_path(&self, id: JobId, attempt: u32, name: &str) -> PathBuf {
+        let dir = self.attempt_dir(id, attempt);
+        if dir.is_dir() { dir.join(name) } else { self.out_root(id).join(name) }
     }
 
     /// The stored upload of a job: `input/<name>` in its directory, under
@@ -119,6 +159,9 @@ pub(crate) enum StopReason {
     Timeout,
     /// The server is shutting down; the job goes back to the queue.
     Shutdown,
+    /// Its lease was lost (deleted, or taken by another worker after it
+    /// expired): nothing may be written, its attempt's files go.
+    LeaseLost,
 }
 
 /// Progress of a running job as last reported (newer than the store).
@@ -133,6 +176,10 @@ pub(crate) struct Live {
 
 /// A job a worker is running.
 pub(crate) struct RunningJob {
+    /// The lease it runs under.
+    pub lease: Lease,
+    /// When its last heartbeat was written.
+    last_beat: Mutex<Instant>,
     pub cancel: Arc<AtomicBool>,
     reason: Mutex<Option<StopReason>>,
     deadline: Instant,
@@ -148,9 +195,11 @@ fn lock<T>(m: &Mutex<T>) -> MutexGuard<'_, T> {
 }
 
 impl RunningJob {
-    fn new(timeout: Duration, memory_estimate: u64, alone: bool) -> Self {
+    fn new(lease: Lease, timeout: Duration, memory_estimate: u64, alone: bool) -> Self {
         let now = Instant::now();
         Self {
+            lease,
+            last_beat: Mutex::new(now),
             memory_estimate,
             alone,
             cancel: Arc::new(AtomicBool::new(false)),
@@ -194,7 +243,9 @@ impl RunningJob {
 /// State shared by the service handle, the dispatcher and the workers.
 pub(crate) struct Inner {
     pub config: JobsConfig,
-    pub store: Store,
+    pub store: Box<dyn JobStore>,
+    /// The name this process holds leases under.
+    pub name: WorkerName,
     pub executor: Arc<dyn Executor>,
     pub pool: rayon::ThreadPool,
     pub running: Mutex<HashMap<JobId, Arc<RunningJob>>>,
@@ -207,15 +258,12 @@ pub(crate) struct Inner {
     pub progress: PendingProgress,
 }
 
-/// The latest unwritten progress of each running job: `(stage, fraction,
-/// seconds per stage)`.
-type ProgressRow = (String, f64, BTreeMap<String, f64>);
-
-/// Progress handed from the jobs' threads to the progress writer thread
-/// ([`progress_writer_loop`]): a commit syncs the database to disk, which
-/// here takes milliseconds to a tenth of a second, and a job must not wait
-/// for it between two steps. Readers of a running job see its live progress
-/// from memory anyway; the stored row is for other processes and restarts.
+/// Progress handed from the jobs' threads to the heartbeat thread
+/// ([`heartbeat_loop`]): a commit syncs the database to disk, which here
+/// takes milliseconds to a tenth of a second, and a job must not wait for
+/// it between two steps. Readers of a running job on this process see its
+/// live progress from memory anyway; the stored row is for other processes
+/// and restarts.
 #[derive(Default)]
 pub(crate) struct PendingProgress {
     rows: Mutex<HashMap<JobId, ProgressRow>>,
@@ -230,13 +278,15 @@ impl PendingProgress {
     }
 }
 
-/// The progress writer: stores the latest progress of every job that
-/// reported since the last pass, until shutdown. A write that lands after
-/// the job ended changes nothing (`set_progress` only updates running jobs).
-pub(crate) fn progress_writer_loop(inner: Arc<Inner>) {
+/// The heartbeat: until shutdown, writes every running job's latest
+/// progress as it comes and otherwise renews its lease every
+/// `config.heartbeat`; a heartbeat that finds the lease lost stops the job
+/// ([`StopReason::LeaseLost`]), one that finds a cancel request (made on
+/// any process) cancels it.
+pub(crate) fn heartbeat_loop(inner: Arc<Inner>) {
     let pending = &inner.progress;
     while !inner.shutdown.load(Ordering::Relaxed) {
-        let rows = {
+        let mut rows = {
             let mut rows = lock(&pending.rows);
             if rows.is_empty() {
                 rows = match pending.wake.wait_timeout(rows, Duration::from_millis(100)) {
@@ -246,11 +296,34 @@ pub(crate) fn progress_writer_loop(inner: Arc<Inner>) {
             }
             std::mem::take(&mut *rows)
         };
-        for (id, (stage, fraction, secs)) in rows {
-            if let Err(e) = inner.store.set_progress(id, &stage, fraction, &secs) {
-                warn!(job = %id, error = %e, "cannot persist progress");
+        let jobs: Vec<Arc<RunningJob>> = inner.running().values().cloned().collect();
+        for job in jobs {
+            let row = rows.remove(&job.lease.id);
+            let due = lock(&job.last_beat).elapsed() >= inner.config.heartbeat;
+            if row.is_some() || due {
+                beat(&inner, &job, row.as_ref());
             }
         }
+    }
+}
+
+/// One heartbeat of `job`, acting on what it learns.
+fn beat(inner: &Inner, job: &RunningJob, row: Option<&ProgressRow>) {
+    match inner.store.heartbeat(&job.lease, inner.config.lease, row) {
+        Ok(Heartbeat::Held { cancel_requested }) => {
+            *lock(&job.last_beat) = Instant::now();
+            if cancel_requested && job.reason().is_none() {
+                info!(job = %job.lease.id, "cancel requested through the store; stopping the job");
+                job.stop(StopReason::Cancel);
+            }
+        }
+        Ok(Heartbeat::Lost) => {
+            if job.reason().is_none() {
+                warn!(job = %job.lease.id, attempt = job.lease.attempt, "the job's lease is lost; stopping it");
+            }
+            job.stop(StopReason::LeaseLost);
+        }
+        Err(e) => warn!(job = %job.lease.id, error = %e, "cannot write the heartbeat"),
     }
 }
 
@@ -260,13 +333,40 @@ impl Inner {
     }
 }
 
-/// The dispatcher loop: enforce time limits, start queued jobs while workers
-/// are free, sleep until woken (submit, job end) or 100 ms pass.
+/// Puts back the jobs whose lease expired or whose owner is a dead process
+/// of this machine, logging what it did.
+pub(crate) fn reap(inner: &Inner) {
+    match inner.store.reap_expired(inner.config.max_attempts, &|owner| inner.name.is_dead(owner)) {
+        Ok(r) if r.requeued.is_empty() && r.failed.is_empty() && r.crashed.is_empty() => {}
+        Ok(r) => {
+            inner.metrics.leases_expired(r.requeued.len() + r.failed.len() + r.crashed.len());
+            warn!(
+                requeued = r.requeued.len(),
+                failed = r.failed.len(),
+                crashed = r.crashed.len(),
+                "took back jobs whose worker stopped holding them"
+            );
+        }
+        Err(e) => error!(error = %e, "cannot look for expired leases"),
+    }
+}
+
+/// The dispatcher loop: enforce time limits, take back jobs whose lease
+/// expired (every heartbeat interval), start queued jobs while workers are
+/// free, sleep until woken (submit, job end, notification) or the poll
+/// interval passes.
 pub(crate) fn dispatch_loop(inner: Arc<Inner>) {
     let mut running = inner.running();
+    let mut last_reap = Instant::now();
     loop {
         if inner.shutdown.load(Ordering::Relaxed) {
             return;
+        }
+        if last_reap.elapsed() >= inner.config.heartbeat {
+            drop(running);
+            reap(&inner);
+            last_reap = Instant::now();
+            running = inner.running();
         }
         let now = Instant::now();
         for (id, job) in running.iter() {
@@ -276,7 +376,7 @@ pub(crate) fn dispatch_loop(inner: Arc<Inner>) {
             }
         }
         while running.len() < inner.config.workers {
-            let head = match inner.store.queue_head() {
+            let head = match inner.store.queue_head(inner.config.memory_budget) {
                 Ok(Some(head)) => head,
                 Ok(None) => break,
                 Err(e) => {
@@ -287,12 +387,15 @@ pub(crate) fn dispatch_loop(inner: Arc<Inner>) {
             if !may_start(&running, head, inner.config.memory_budget) {
                 break;
             }
-            match inner.store.claim(head.id) {
+            match inner.store.claim(head.id, inner.name.as_str(), inner.config.lease) {
                 Ok(Some(rec)) => {
                     if head.crashes > 0 {
                         warn!(job = %rec.id, crashes = head.crashes, "running alone a job that crashed the server");
                     }
+                    inner.metrics.job_claimed();
+                    let lease = Lease { id: rec.id, attempt: rec.attempts, owner: inner.name.shared() };
                     let job = Arc::new(RunningJob::new(
+                        lease,
                         inner.config.job_timeout,
                         head.memory_estimate_bytes,
                         head.crashes > 0,
@@ -301,7 +404,7 @@ pub(crate) fn dispatch_loop(inner: Arc<Inner>) {
                     let inner2 = inner.clone();
                     inner.pool.spawn(move || run_job(&inner2, rec, &job));
                 }
-                // Cancelled or deleted since it was read: look again.
+                // Cancelled, deleted or claimed elsewhere since it was read: look again.
                 Ok(None) => {}
                 Err(e) => {
                     error!(error = %e, "cannot claim the next job");
@@ -309,7 +412,7 @@ pub(crate) fn dispatch_loop(inner: Arc<Inner>) {
                 }
             }
         }
-        running = match inner.wake.wait_timeout(running, Duration::from_millis(100)) {
+        running = match inner.wake.wait_timeout(running, inner.config.poll_interval) {
             Ok((g, _)) => g,
             Err(p) => p.into_inner().0,
         };
@@ -412,7 +515,8 @@ fn run_job(inner: &Arc<Inner>, rec: JobRecord, job: &Arc<RunningJob>) {
     let _enter = span.enter();
     let started = Instant::now();
     info!(input = %rec.input_name, bytes = rec.input_bytes, "job started");
-    let out_dir = inner.config.out_dir(rec.id);
+    let out_dir = inner.config.attempt_dir(rec.id, rec.attempts);
+    remove_other_attempts(&inner.config, rec.id, rec.attempts);
     let prepared = std::fs::remove_dir_all(&out_dir)
         .or_else(|e| if e.kind() == std::io::ErrorKind::NotFound { Ok(()) } else { Err(e) })
         .and_then(|()| std::fs::create_dir_all(&out_dir));
@@ -443,7 +547,7 @@ fn run_job(inner: &Arc<Inner>, rec: JobRecord, job: &Arc<RunningJob>) {
         }
     };
     let live_seconds = job.stage_seconds_now();
-    let final_state = record_result(inner, &rec, job, result, &out_dir, live_seconds, started);
+    let final_state = record_result(inner, job, result, &out_dir, live_seconds, started);
     if let Some(state) = final_state {
         info!(state = state.as_str(), seconds = started.elapsed().as_secs_f64(), "job finished");
     }
@@ -455,6 +559,8 @@ fn run_job(inner: &Arc<Inner>, rec: JobRecord, job: &Arc<RunningJob>) {
 enum Ending {
     /// Deleted by a client: nothing to write (record and files go).
     Deleted,
+    /// Its lease was lost: nothing may be written; its attempt's files go.
+    Abandoned,
     /// Server shutdown: back to the queue.
     Requeue,
     /// Cancelled by a client.
@@ -471,7 +577,6 @@ enum Ending {
 /// A store that does not write is retried (see [`record_ending`]).
 fn record_result(
     inner: &Arc<Inner>,
-    rec: &JobRecord,
     job: &RunningJob,
     result: std::thread::Result<Result<JobOutcome, ExecError>>,
     out_dir: &Path,
@@ -483,14 +588,14 @@ fn record_result(
         Ending::Cancelled => Some(JobState::Cancelled),
         Ending::Failed(..) => Some(JobState::Failed),
         Ending::Succeeded(..) => Some(JobState::Succeeded),
-        Ending::Deleted | Ending::Requeue => None,
+        Ending::Deleted | Ending::Abandoned | Ending::Requeue => None,
     };
     if let (Some(state), Ending::Failed(_, secs) | Ending::Succeeded(_, secs, _)) = (state, &ending) {
         inner.metrics.job_finished(state, started.elapsed().as_secs_f64(), secs);
     } else if let Some(state) = state {
         inner.metrics.job_finished(state, started.elapsed().as_secs_f64(), &job.stage_seconds_now());
     }
-    record_ending(inner, rec.id, job, ending)
+    record_ending(inner, job, ending)
 }
 
 /// Decides how a job ended from its stop reason and its executor's result.
@@ -506,6 +611,7 @@ fn ending_of(
 ) -> Ending {
     match (reason, result) {
         (Some(StopReason::Delete), _) => Ending::Deleted,
+        (Some(StopReason::LeaseLost), _) => Ending::Abandoned,
         (Some(StopReason::Shutdown), _) => Ending::Requeue,
         (Some(StopReason::Cancel), _) => Ending::Cancelled,
         (_, Err(payload)) => {
@@ -563,30 +669,43 @@ fn ending_of(
     }
 }
 
-/// Writes `ending` to the store once; the final state, `None` when there
-/// is none (deleted, requeued, or the job was no longer running).
-fn write_ending(inner: &Inner, id: JobId, ending: &Ending) -> Result<Option<JobState>, StoreError> {
+/// Writes `ending` to the store once, fenced by `lease`; the final state,
+/// `None` when there is none (deleted, abandoned, requeued, or the job no
+/// longer runs under this lease). A fenced write that changes nothing
+/// removes this attempt's files, or the whole job's when its record is gone.
+fn write_ending(inner: &Inner, lease: &Lease, ending: &Ending) -> Result<Option<JobState>, StoreError> {
     let store = &inner.store;
-    Ok(match ending {
+    let written = match ending {
         Ending::Deleted => {
-            remove_job_dir(&inner.config, id);
-            None
+            remove_job_dir(&inner.config, lease.id);
+            return Ok(None);
         }
+        Ending::Abandoned => false,
         Ending::Requeue => {
-            store.requeue(id)?;
-            None
+            store.requeue(lease)?;
+            return Ok(None);
         }
-        Ending::Cancelled => store.cancel_if(id, JobState::Running)?.then_some(JobState::Cancelled),
-        Ending::Failed(e, secs) => store.finish_failed(id, e, secs)?.then_some(JobState::Failed),
-        Ending::Succeeded(summary, secs, artifacts) => {
-            if store.finish_succeeded(id, summary, secs, artifacts)? {
-                Some(JobState::Succeeded)
-            } else {
-                remove_job_dir(&inner.config, id);
-                None
-            }
+        Ending::Cancelled => store.finish_cancelled(lease)?,
+        Ending::Failed(e, secs) => store.finish_failed(lease, e, secs)?,
+        Ending::Succeeded(summary, secs, artifacts) => store.finish_succeeded(lease, summary, secs, artifacts)?,
+    };
+    if written {
+        if matches!(ending, Ending::Succeeded(..)) {
+            remove_other_attempts(&inner.config, lease.id, lease.attempt);
         }
-    })
+        return Ok(Some(match ending {
+            Ending::Cancelled => JobState::Cancelled,
+            Ending::Failed(..) => JobState::Failed,
+            _ => JobState::Succeeded,
+        }));
+    }
+    if store.get(lease.id)?.is_none() {
+        remove_job_dir(&inner.config, lease.id);
+    } else {
+        info!(attempt = lease.attempt, "another attempt holds the job; this attempt's files are removed");
+        remove_partial_artifacts(&inner.config.attempt_dir(lease.id, lease.attempt));
+    }
+    Ok(None)
 }
 
 /// Writes `ending`, retrying with backoff for [`storage::RECORD_RETRY`]
@@ -594,22 +713,23 @@ fn write_ending(inner: &Inner, id: JobId, ending: &Ending) -> Result<Option<JobS
 /// that arrives meanwhile replaces the ending. A job still unrecorded then
 /// goes to the unrecorded list, to be failed with the storage kind by
 /// [`flush_unrecorded`] once the store writes again.
-fn record_ending(inner: &Inner, id: JobId, job: &RunningJob, mut ending: Ending) -> Option<JobState> {
+fn record_ending(inner: &Inner, job: &RunningJob, mut ending: Ending) -> Option<JobState> {
     let start = Instant::now();
     let mut pause = storage::FIRST_BACKOFF;
     loop {
         match (job.reason(), &ending) {
-            (_, Ending::Deleted | Ending::Requeue) => {}
+            (_, Ending::Deleted | Ending::Abandoned | Ending::Requeue) => {}
             (Some(StopReason::Delete), _) => ending = Ending::Deleted,
+            (Some(StopReason::LeaseLost), _) => ending = Ending::Abandoned,
             (Some(StopReason::Cancel), _) => ending = Ending::Cancelled,
             _ => {}
         }
-        let err = match write_ending(inner, id, &ending) {
+        let err = match write_ending(inner, &job.lease, &ending) {
             Ok(state) => return state,
             Err(e) => e,
         };
         if matches!(ending, Ending::Requeue) && inner.shutdown.load(Ordering::Relaxed) {
-            // Left `running`: the next start's recovery puts it back in the queue.
+            // Left `running`: its lease expires and a worker takes it back.
             error!(error = %err, "cannot put the job back in the queue");
             return None;
         }
@@ -621,7 +741,7 @@ fn record_ending(inner: &Inner, id: JobId, job: &RunningJob, mut ending: Ending)
                 _ => job.stage_seconds_now(),
             };
             lock(&inner.unrecorded).push(storage::Unrecorded {
-                id,
+                lease: job.lease.clone(),
                 error: storage::unrecorded_failure(kind),
                 stage_seconds: secs,
                 cancel: matches!(ending, Ending::Cancelled),
@@ -649,13 +769,14 @@ pub(crate) fn flush_unrecorded(inner: &Inner) {
         } else {
             Ending::Failed(u.error.clone(), u.stage_seconds.clone())
         };
+        let id = u.lease.id;
         let written = match ending {
-            Ending::Deleted => inner.store.delete(u.id).map(|_| remove_job_dir(&inner.config, u.id)),
-            ref e => write_ending(inner, u.id, e).map(|_| ()),
+            Ending::Deleted => inner.store.delete(id).map(|_| remove_job_dir(&inner.config, id)),
+            ref e => write_ending(inner, &u.lease, e).map(|_| ()),
         };
         match written {
             Ok(()) => {
-                info!(job = %u.id, kind = %u.error.kind, "recorded the end of a job that could not be stored before")
+                info!(job = %id, kind = %u.error.kind, "recorded the end of a job that could not be stored before")
             }
             Err(_) => keep.push(u),
         }
@@ -668,7 +789,7 @@ pub(crate) fn flush_unrecorded(inner: &Inner) {
 pub(crate) fn stop_unrecorded(inner: &Inner, id: JobId, why: StopReason) -> bool {
     {
         let mut list = lock(&inner.unrecorded);
-        let Some(u) = list.iter_mut().find(|u| u.id == id) else { return false };
+        let Some(u) = list.iter_mut().find(|u| u.lease.id == id) else { return false };
         match why {
             StopReason::Delete => u.delete = true,
             StopReason::Cancel => u.cancel = true,
@@ -696,6 +817,25 @@ fn remove_partial_artifacts(out_dir: &Path) {
         && e.kind() != std::io::ErrorKind::NotFound
     {
         warn!(dir = %out_dir.display(), error = %e, "cannot remove the partial artifacts of a stopped job");
+    }
+}
+
+/// Removes the artifact directories of a job's attempts other than `keep`
+/// (and artifacts stored directly in `out/` before attempts had directories).
+fn remove_other_attempts(config: &JobsConfig, id: JobId, keep: u32) {
+    let Ok(entries) = std::fs::read_dir(config.out_root(id)) else { return };
+    let keep = keep.to_string();
+    for entry in entries.flatten() {
+        if entry.file_name().to_str() == Some(keep.as_str()) {
+            continue;
+        }
+        let path = entry.path();
+        let removed = if path.is_dir() { std::fs::remove_dir_all(&path) } else { std::fs::remove_file(&path) };
+        if let Err(e) = removed
+            && e.kind() != std::io::ErrorKind::NotFound
+        {
+            warn!(path = %path.display(), error = %e, "cannot remove another attempt's artifacts");
+        }
     }
 }
 

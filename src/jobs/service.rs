@@ -13,7 +13,13 @@ use super::executor::Executor;
 use super::metrics::{Gauges, Metrics};
 use super::model::{JobId, JobPage, JobRecord, JobState, NewJob};
 use super::runner::{Inner, JobsConfig, StopReason, dispatch_loop, panic_message, remove_job_dir};
-use super::store::{Store, StoreError};
+use super::store::{JobStore, NewRow, StoreError, StoreLocation};
+use super::worker_name::WorkerName;
+
+/// Age below which a job directory without a record, or a file in `tmp/`,
+/// may still belong to a submission in progress on another process sharing
+/// the data directory, so start-up cleaning leaves it.
+const IN_FLIGHT_AGE: Duration = Duration::from_secs(600);
 
 /// How long cancel and delete wait for a running job to stop before they
 /// answer that the stop is pending (the stages check for cancellation
@@ -123,12 +129,11 @@ impl JobService {
         let jobs_dir = config.data_dir.join("jobs");
         std::fs::create_dir_all(&jobs_dir).map_err(io_err(format!("cannot create {}", jobs_dir.display())))?;
         let tmp = config.data_dir.join("tmp");
-        if tmp.exists() {
-            std::fs::remove_dir_all(&tmp).map_err(io_err(format!("cannot clean {}", tmp.display())))?;
-        }
         std::fs::create_dir_all(&tmp).map_err(io_err(format!("cannot create {}", tmp.display())))?;
-        let store = Store::open(&config.data_dir.join("meshatlas.sqlite3"))?;
-        let recovery = store.recover_interrupted(config.max_attempts)?;
+        remove_old_entries(&tmp, IN_FLIGHT_AGE, |_| true).map_err(io_err(format!("cannot clean {}", tmp.display())))?;
+        let store = open_store(&config.store)?;
+        let name = WorkerName::of_this_process();
+        let recovery = store.reap_expired(config.max_attempts, &|owner| name.is_dead(owner))?;
         if !recovery.requeued.is_empty() || !recovery.failed.is_empty() || !recovery.crashed.is_empty() {
             warn!(
                 requeued = recovery.requeued.len(),
@@ -137,7 +142,7 @@ impl JobService {
                 "recovered interrupted jobs"
             );
         }
-        remove_orphans(&store, &jobs_dir)?;
+        remove_orphans(&*store, &jobs_dir)?;
         let workers = config.workers.max(1);
         let threads = pool_threads(config.threads, workers);
         let pool = rayon::ThreadPoolBuilder::new()
@@ -149,6 +154,7 @@ impl JobService {
         let inner = Arc::new(Inner {
             config: JobsConfig { workers, threads, ..config },
             store,
+            name,
             executor,
             pool,
             running: Mutex::new(Default::default()),
@@ -158,21 +164,9 @@ impl JobService {
             unrecorded: Mutex::new(Vec::new()),
             progress: Default::default(),
         });
-        let w = inner.clone();
-        std::thread::Builder::new()
-            .name("meshatlas-progress".into())
-            .spawn(move || super::runner::progress_writer_loop(w))
-            .map_err(|e| JobsError::Internal(format!("cannot start the progress writer: {e}")))?;
-        let r = inner.clone();
-        std::thread::Builder::new()
-            .name("meshatlas-recorder".into())
-            .spawn(move || super::runner::recorder_loop(r))
-            .map_err(|e| JobsError::Internal(format!("cannot start the recorder: {e}")))?;
-        let d = inner.clone();
-        std::thread::Builder::new()
-            .name("meshatlas-dispatcher".into())
-            .spawn(move || dispatch_loop(d))
-            .map_err(|e| JobsError::Internal(format!("cannot start the dispatcher: {e}")))?;
+        if inner.config.run_jobs {
+            start_worker_threads(&inner)?;
+        }
         if let Some(max_age) = inner.config.retention.max_age {
             let r = inner.clone();
             std::thread::Builder::new()
@@ -180,7 +174,15 @@ impl JobService {
                 .spawn(move || super::retention::retention_loop(r, max_age))
                 .map_err(|e| JobsError::Internal(format!("cannot start the retention sweep: {e}")))?;
         }
-        info!(data_dir = %inner.config.data_dir.display(), workers, threads, "job service started");
+        info!(
+            data_dir = %inner.config.data_dir.display(),
+            store = %inner.config.store.redacted(),
+            name = inner.name.as_str(),
+            run_jobs = inner.config.run_jobs,
+            workers,
+            threads,
+            "job service started"
+        );
         Ok(Self { inner, admission: Arc::new(Mutex::new(())) })
     }
 
@@ -221,7 +223,7 @@ impl JobService {
     /// [`JobsError::TenantQueueFull`], [`JobsError::QuotaExceeded`], or
     /// [`JobsError::Store`] on database failure.
     pub async fn check_admission(&self, tenant: Option<String>, incoming: u64) -> Result<(), JobsError> {
-        self.blocking(move |i| super::quota::check_admission(&i.store, &i.config.quotas, tenant.as_deref(), incoming))
+        self.blocking(move |i| super::quota::check_admission(&*i.store, &i.config.quotas, tenant.as_deref(), incoming))
             .await
     }
 
@@ -251,7 +253,7 @@ impl JobService {
         self.blocking(move |inner| {
             let _admitted = admission.lock().unwrap_or_else(|p| p.into_inner());
             let quotas = &inner.config.quotas;
-            if let Err(e) = super::quota::check_admission(&inner.store, quotas, new.tenant.as_deref(), new.input_bytes)
+            if let Err(e) = super::quota::check_admission(&*inner.store, quotas, new.tenant.as_deref(), new.input_bytes)
             {
                 let _ = std::fs::remove_file(&new.upload_path);
                 return Err(e);
@@ -285,16 +287,16 @@ impl JobService {
                 cleanup(inner);
                 return Err(e);
             }
-            let rec = inner.store.insert_queued(
+            let row = NewRow {
                 id,
-                &input_name,
-                new.input_bytes,
-                new.format.as_deref(),
-                &new.params,
-                estimate,
-                inner.config.max_queued,
-                new.tenant.as_deref(),
-            );
+                input_name: &input_name,
+                input_bytes: new.input_bytes,
+                format: new.format.as_deref(),
+                params: &new.params,
+                memory_estimate_bytes: estimate,
+                tenant: new.tenant.as_deref(),
+            };
+            let rec = inner.store.insert_queued(&row, inner.config.max_queued);
             match rec {
                 Ok(Some(rec)) => {
                     inner.wake.notify_all();
@@ -341,53 +343,76 @@ impl JobService {
         .await
     }
 
-    /// Asks a job to stop for `why`; returns whether it was running. A queued
-    /// job is cancelled (or deleted) directly in the store.
-    fn stop(inner: &Inner, id: JobId, why: StopReason) -> Result<bool, JobsError> {
+    /// Asks a job to stop for `why`. A job running here is told at once; one
+    /// running on another worker learns it at its next heartbeat (a cancel
+    /// flag, or for a delete its record gone); a queued job is cancelled (or
+    /// deleted) directly in the store.
+    fn stop(inner: &Inner, id: JobId, why: StopReason) -> Result<Where, JobsError> {
         let running = inner.running();
         if let Some(job) = running.get(&id) {
             job.stop(why);
-            return Ok(true);
+            return Ok(Where::Here);
         }
+        drop(running);
         if super::runner::stop_unrecorded(inner, id, why) {
-            return Ok(false);
+            return Ok(Where::Stopped);
         }
+        let rec = inner.store.get(id)?.ok_or(JobsError::NotFound(id))?;
         match why {
             StopReason::Delete => {
                 if !inner.store.delete(id)? {
                     return Err(JobsError::NotFound(id));
                 }
+                if rec.state == JobState::Running {
+                    return Ok(Where::Elsewhere(Box::new(rec)));
+                }
             }
             _ => {
-                if !inner.store.cancel_if(id, JobState::Queued)? && inner.store.get(id)?.is_none() {
-                    return Err(JobsError::NotFound(id));
+                if !inner.store.cancel_queued(id)? && inner.store.request_cancel(id)? {
+                    return Ok(Where::Elsewhere(Box::new(rec)));
                 }
             }
         }
-        Ok(false)
+        Ok(Where::Stopped)
     }
 
-    async fn wait_stopped(&self, id: JobId) {
+    /// Waits up to [`STOP_WAIT`] for job `id` to stop: here, until it leaves
+    /// the running map; elsewhere, until its record leaves `running`.
+    async fn wait_stopped(&self, id: JobId, at: &Where) {
         let start = Instant::now();
-        while start.elapsed() < STOP_WAIT && self.inner.running().contains_key(&id) {
-            tokio::time::sleep(Duration::from_millis(10)).await;
+        while start.elapsed() < STOP_WAIT {
+            let stopped = match at {
+                Where::Here => !self.inner.running().contains_key(&id),
+                Where::Elsewhere(_) => self
+                    .blocking(move |inner| Ok(inner.store.get(id)?.is_none_or(|r| r.state != JobState::Running)))
+                    .await
+                    .unwrap_or(true),
+                Where::Stopped => true,
+            };
+            if stopped {
+                return;
+            }
+            tokio::time::sleep(Duration::from_millis(if matches!(at, Where::Here) { 10 } else { 100 })).await;
         }
     }
 
     /// Cancels a queued or running job (a running one stops at its next
-    /// progress check, waited for up to [`STOP_WAIT`]). A finished job is
+    /// progress check, or its worker's next heartbeat when it runs on
+    /// another process; waited for up to [`STOP_WAIT`]). A finished job is
     /// left as it is. Returns the job as it is afterwards: still `running`
     /// with `stop_requested` when it did not stop within the wait.
     ///
     /// # Errors
     /// [`JobsError::NotFound`], or [`JobsError::Store`] on database failure.
     pub async fn cancel(&self, id: JobId) -> Result<JobRecord, JobsError> {
-        let was_running = self.blocking(move |inner| Self::stop(inner, id, StopReason::Cancel)).await?;
-        if was_running {
-            self.wait_stopped(id).await;
-        }
+        let at = self.blocking(move |inner| Self::stop(inner, id, StopReason::Cancel)).await?;
+        self.wait_stopped(id, &at).await;
         info!(job = %id, "job cancelled");
-        self.get(id).await
+        let mut rec = self.get(id).await?;
+        if matches!(at, Where::Elsewhere(_)) && rec.state == JobState::Running {
+            rec.stop_requested = true;
+        }
+        Ok(rec)
     }
 
     /// Cancels the job if needed and removes its record and files. Returns
@@ -398,23 +423,32 @@ impl JobService {
     /// # Errors
     /// [`JobsError::NotFound`], or storage errors.
     pub async fn delete(&self, id: JobId) -> Result<Deletion, JobsError> {
-        let was_running = self.blocking(move |inner| Self::stop(inner, id, StopReason::Delete)).await?;
+        let at = self.blocking(move |inner| Self::stop(inner, id, StopReason::Delete)).await?;
         let mut pending = None;
-        if was_running {
-            self.wait_stopped(id).await;
-            if self.inner.running().contains_key(&id) {
-                pending = self.get(id).await.ok();
-                info!(job = %id, "job deletion pending: it has not stopped yet");
+        match &at {
+            Where::Here => {
+                self.wait_stopped(id, &at).await;
+                if self.inner.running().contains_key(&id) {
+                    pending = self.get(id).await.ok();
+                    info!(job = %id, "job deletion pending: it has not stopped yet");
+                }
+                self.blocking(move |inner| {
+                    inner.store.delete(id)?;
+                    Ok(())
+                })
+                .await?;
             }
-            self.blocking(move |inner| {
-                inner.store.delete(id)?;
-                Ok(())
-            })
-            .await?;
+            // Its record is gone: the worker's next heartbeat stops it, and
+            // the worker removes what it writes after the files below go.
+            Where::Elsewhere(rec) => {
+                let mut rec = (**rec).clone();
+                rec.stop_requested = true;
+                pending = Some(rec);
+            }
+            Where::Stopped => {}
         }
-        // A job still running removes its own directory when it stops.
         let mut not_removed = Vec::new();
-        if pending.is_none() {
+        if !matches!(at, Where::Here) || pending.is_none() {
             not_removed =
                 self.blocking(move |inner| Ok(super::runner::remove_job_dir_reporting(&inner.config, id))).await?;
         }
@@ -435,7 +469,7 @@ impl JobService {
                 .find(|a| a.name == name)
                 .cloned()
                 .ok_or(JobsError::ArtifactNotFound { id, name })?;
-            Ok((inner.config.out_dir(id).join(&art.name), art))
+            Ok((inner.config.artifact_path(id, rec.attempts, &art.name), art))
         })
         .await
     }
@@ -538,16 +572,70 @@ fn get_live(inner: &Inner, id: JobId) -> Result<JobRecord, JobsError> {
     Ok(rec)
 }
 
-/// Removes job directories with no record (crash between file and row).
-fn remove_orphans(store: &Store, jobs_dir: &std::path::Path) -> Result<(), JobsError> {
-    let known: std::collections::HashSet<String> = store.all_ids()?.into_iter().collect();
-    let entries = std::fs::read_dir(jobs_dir).map_err(io_err(format!("cannot read {}", jobs_dir.display())))?;
-    for entry in entries.flatten() {
+/// Where a job that was asked to stop was running.
+enum Where {
+    /// On this process.
+    Here,
+    /// On another worker (the record as it was before the request).
+    Elsewhere(Box<JobRecord>),
+    /// Nowhere: it was queued, finished or unrecorded, and is handled.
+    Stopped,
+}
+
+/// Opens the job store at `location`.
+fn open_store(location: &StoreLocation) -> Result<Box<dyn JobStore>, JobsError> {
+    Ok(match location {
+        StoreLocation::Sqlite(dir) => {
+            std::fs::create_dir_all(dir).map_err(io_err(format!("cannot create {}", dir.display())))?;
+            Box::new(super::sqlite_store::SqliteStore::open(&dir.join("meshatlas.sqlite3"))?)
+        }
+        StoreLocation::Postgres(url) => Box::new(super::pg_store::PgStore::connect(url)?),
+    })
+}
+
+/// Starts the threads of a process that runs jobs: heartbeat, recorder and
+/// dispatcher; with PostgreSQL also the listener that wakes the dispatcher.
+fn start_worker_threads(inner: &Arc<Inner>) -> Result<(), JobsError> {
+    let spawn = |name: &str, f: Box<dyn FnOnce() + Send>| {
+        std::thread::Builder::new()
+            .name(format!("meshatlas-{name}"))
+            .spawn(f)
+            .map(drop)
+            .map_err(|e| JobsError::Internal(format!("cannot start the {name} thread: {e}")))
+    };
+    let (h, r, d) = (inner.clone(), inner.clone(), inner.clone());
+    spawn("heartbeat", Box::new(move || super::runner::heartbeat_loop(h)))?;
+    spawn("recorder", Box::new(move || super::runner::recorder_loop(r)))?;
+    spawn("dispatcher", Box::new(move || dispatch_loop(d)))?;
+    let weak = Arc::downgrade(inner);
+    inner.store.wake_on_new_jobs(Arc::new(move || {
+        if let Some(i) = weak.upgrade() {
+            i.wake.notify_all();
+        }
+    }));
+    Ok(())
+}
+
+/// Removes the entries of `dir` older than `age` (by modification time)
+/// for which `pick` holds.
+fn remove_old_entries(dir: &std::path::Path, age: Duration, pick: impl Fn(&str) -> bool) -> std::io::Result<()> {
+    for entry in std::fs::read_dir(dir)?.flatten() {
         let name = entry.file_name().to_string_lossy().into_owned();
-        if !known.contains(&name) {
-            warn!(dir = %entry.path().display(), "removing orphaned job directory");
-            let _ = std::fs::remove_dir_all(entry.path());
+        let old = entry.metadata().and_then(|m| m.modified()).is_ok_and(|t| t.elapsed().is_ok_and(|e| e >= age));
+        if old && pick(&name) {
+            warn!(path = %entry.path().display(), "removing a leftover entry");
+            let path = entry.path();
+            let _ = if path.is_dir() { std::fs::remove_dir_all(&path) } else { std::fs::remove_file(&path) };
         }
     }
     Ok(())
+}
+
+/// Removes job directories with no record (a crash between file and row)
+/// once they are older than [`IN_FLIGHT_AGE`]: a younger one may be a
+/// submission another process is making.
+fn remove_orphans(store: &dyn JobStore, jobs_dir: &std::path::Path) -> Result<(), JobsError> {
+    let known: std::collections::HashSet<String> = store.all_ids()?.into_iter().collect();
+    remove_old_entries(jobs_dir, IN_FLIGHT_AGE, |name| !known.contains(name))
+        .map_err(io_err(format!("cannot read {}", jobs_dir.display())))
 }

@@ -15,7 +15,7 @@ use std::time::Duration;
 
 use rusqlite::ErrorCode;
 
-use super::model::{JobError, JobId};
+use super::model::JobError;
 use super::service::JobsError;
 use super::store::StoreError;
 use crate::failure::FailureKind;
@@ -32,9 +32,11 @@ pub const MAX_BACKOFF: Duration = Duration::from_secs(2);
 pub const FLUSH_INTERVAL: Duration = Duration::from_millis(500);
 
 /// The storage kind of a store error: `storage-full` for `SQLITE_FULL`,
-/// `storage-unavailable` for a read-only database or an I/O error.
+/// `storage-unavailable` for a read-only database or an I/O error, and for
+/// a PostgreSQL server that fails or cannot be reached.
 pub fn store_error_kind(e: &StoreError) -> Option<FailureKind> {
     match e {
+        StoreError::Postgres(_) => Some(FailureKind::StorageUnavailable),
         StoreError::Sqlite(rusqlite::Error::SqliteFailure(f, _)) => match f.code {
             ErrorCode::DiskFull => Some(FailureKind::StorageFull),
             ErrorCode::ReadOnly | ErrorCode::SystemIoFailure | ErrorCode::CannotOpen => {
@@ -76,8 +78,8 @@ pub fn artifact_failure(kind: FailureKind) -> JobError {
 /// A job whose end is not yet in the store.
 #[derive(Debug, Clone)]
 pub struct Unrecorded {
-    /// The job.
-    pub id: JobId,
+    /// The job and the lease it ran under.
+    pub lease: super::store::Lease,
     /// The failure to record (a storage kind).
     pub error: JobError,
     /// Per-stage seconds to record with it.

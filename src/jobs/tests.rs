@@ -4,6 +4,7 @@ use std::sync::Arc;
 use std::sync::atomic::{AtomicUsize, Ordering};
 use std::time::{Duration, Instant};
 
+use super::store::{JobStore, NewRow};
 use super::*;
 use crate::failure::FailureKind;
 use crate::progress::Progress;
@@ -202,14 +203,32 @@ async fn a_restart_requeues_the_interrupted_job() {
     let dir = tempfile::tempdir().unwrap();
     // Simulate a crash: mark a job running in the store, as a killed worker would leave it.
     let id = {
-        let store = Store::open(&dir.path().join("meshatlas.sqlite3")).unwrap();
+        let store = SqliteStore::open(&dir.path().join("meshatlas.sqlite3")).unwrap();
         let id = JobId::random();
         let cfg = config(dir.path());
         std::fs::create_dir_all(cfg.input_path(id, "x.stl").parent().unwrap()).unwrap();
         std::fs::write(cfg.input_path(id, "x.stl"), b"x").unwrap();
-        store.insert_queued(id, "x.stl", 1, None, &serde_json::json!({}), 0, 10, None).unwrap();
-        store.claim_next().unwrap();
-        std::fs::create_dir_all(dir.path().join("jobs/not-a-job")).unwrap();
+        let params = serde_json::json!({});
+        let row = NewRow {
+            id,
+            input_name: "x.stl",
+            input_bytes: 1,
+            format: None,
+            params: &params,
+            memory_estimate_bytes: 0,
+            tenant: None,
+        };
+        store.insert_queued(&row, 10).unwrap();
+        // Claimed by a process of this host that is gone (PID above Linux's pid_max), lease still live.
+        let host = std::fs::read_to_string("/proc/sys/kernel/hostname").unwrap().trim().to_string();
+        store.claim(id, &format!("{host}/4194304/gone"), Duration::from_secs(3600)).unwrap().unwrap();
+        // An orphaned directory old enough not to be a submission in progress, and a young one.
+        for (name, age) in [("not-a-job", 3600), ("in-flight", 0)] {
+            let d = dir.path().join("jobs").join(name);
+            std::fs::create_dir_all(&d).unwrap();
+            let t = std::time::SystemTime::now() - Duration::from_secs(age);
+            std::fs::File::open(&d).unwrap().set_modified(t).unwrap();
+        }
         id
     };
     let exec = |_: &JobInput, _: &Progress| Ok(JobOutcome::default());
@@ -217,6 +236,7 @@ async fn a_restart_requeues_the_interrupted_job() {
     let done = wait_for(&svc, id, |r| r.state.is_final()).await;
     assert_eq!((done.state, done.attempts), (JobState::Succeeded, 2));
     assert!(!dir.path().join("jobs/not-a-job").exists(), "orphaned directories are removed");
+    assert!(dir.path().join("jobs/in-flight").exists(), "a young directory may be a submission in progress");
 }
 
 #[tokio::test]
@@ -323,4 +343,36 @@ async fn one_job_at_a_time_still_gets_every_pool_thread() {
         assert_eq!(summary["threads"], expected, "threads = {threads}");
         assert_eq!(summary["distinct"], expected, "threads = {threads}");
     }
+}
+
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn a_finish_after_the_lease_was_taken_over_writes_nothing_and_removes_its_files() {
+    let dir = tempfile::tempdir().unwrap();
+    let (go_tx, go_rx) = std::sync::mpsc::channel::<()>();
+    let go_rx = std::sync::Mutex::new(go_rx);
+    let exec = move |job: &JobInput, _: &Progress| -> Result<JobOutcome, ExecError> {
+        go_rx.lock().unwrap().recv().unwrap();
+        std::fs::write(job.out_dir.join("late.msh"), b"late").unwrap();
+        Ok(JobOutcome::default())
+    };
+    // Heartbeats rarer than the test, so the finish, not a heartbeat, meets the fence.
+    let cfg =
+        JobsConfig { heartbeat: Duration::from_secs(3600), lease: Duration::from_secs(3 * 3600), ..config(dir.path()) };
+    let svc = JobService::start(cfg.clone(), Arc::new(exec)).unwrap();
+    let rec = submit(&svc).await.unwrap();
+    wait_for(&svc, rec.id, |r| r.state == JobState::Running).await;
+    // Another process takes the job over (as after an expired lease): attempt 2, another owner.
+    let other = SqliteStore::open(&dir.path().join("meshatlas.sqlite3")).unwrap();
+    assert_eq!(other.reap_expired(3, &|_: &str| true).unwrap().requeued, vec![rec.id]);
+    other.claim(rec.id, "other-host/1/x", Duration::from_secs(3600)).unwrap().unwrap();
+    go_tx.send(()).unwrap();
+    let attempt1 = cfg.attempt_dir(rec.id, 1);
+    let start = Instant::now();
+    while attempt1.exists() && start.elapsed() < Duration::from_secs(10) {
+        tokio::time::sleep(Duration::from_millis(10)).await;
+    }
+    assert!(!attempt1.exists(), "the fenced-out attempt's files are removed");
+    let j = other.get(rec.id).unwrap().unwrap();
+    assert_eq!((j.state, j.attempts, j.artifacts.len()), (JobState::Running, 2, 0), "the record is the new attempt's");
+    assert!(cfg.input_path(rec.id, "x.stl").exists(), "the job's input stays for the new attempt");
 }

@@ -23,6 +23,9 @@ impl Server {
     pub async fn start(exec: Arc<dyn Executor>, tweak: impl FnOnce(&mut JobsConfig, &mut HttpLimits)) -> Server {
         let dir = tempfile::tempdir().unwrap();
         let mut cfg = JobsConfig { progress_interval: Duration::from_millis(10), ..JobsConfig::new(dir.path()) };
+        if let Some(url) = matrix_database() {
+            cfg.store = meshatlas::jobs::StoreLocation::Postgres(url);
+        }
         let mut limits = HttpLimits::default();
         tweak(&mut cfg, &mut limits);
         let jobs = JobService::start(cfg, exec).unwrap();
@@ -82,6 +85,22 @@ impl Server {
 
     pub async fn wait_final(&self, id: &str) -> Value {
         self.wait_until(id, |j| matches!(j["state"].as_str(), Some("succeeded" | "failed" | "cancelled"))).await
+    }
+}
+
+/// The job store of the test matrix: with `MESHATLAS_TEST_MATRIX=postgres`
+/// (`.ci/run` runs this suite a second time so) every server of the suite
+/// keeps its jobs in a fresh PostgreSQL database on `MESHATLAS_TEST_PG_URL`;
+/// otherwise `None`, the embedded SQLite default.
+pub fn matrix_database() -> Option<String> {
+    match std::env::var("MESHATLAS_TEST_MATRIX").as_deref() {
+        Ok("postgres") => {
+            let admin = std::env::var("MESHATLAS_TEST_PG_URL")
+                .expect("MESHATLAS_TEST_MATRIX=postgres needs MESHATLAS_TEST_PG_URL");
+            Some(meshatlas::jobs::pg_store::create_test_database(&admin))
+        }
+        Ok("") | Ok("sqlite") | Err(_) => None,
+        Ok(other) => panic!("MESHATLAS_TEST_MATRIX must be sqlite or postgres, not {other}"),
     }
 }
 

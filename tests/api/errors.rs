@@ -203,7 +203,7 @@ async fn server_errors_are_generic_and_job_failures_are_problems() {
     let id = job["id"].as_str().unwrap();
     let done = s.wait_final(id).await;
     assert_eq!(done["state"], "succeeded");
-    std::fs::remove_file(s.dir.path().join("jobs").join(id).join("out/a.json")).unwrap();
+    std::fs::remove_file(s.dir.path().join("jobs").join(id).join("out/1/a.json")).unwrap();
     let r = s.client.get(s.url(&format!("/v1/jobs/{id}/artifacts/a.json"))).send().await.unwrap();
     let body = expect_problem(r, 500, "internal-error").await;
     assert!(!body["detail"].as_str().unwrap().contains("a.json"), "no internals in 5xx: {body}");

@@ -19,10 +19,18 @@ struct Proc {
 
 impl Proc {
     fn start(data_dir: &Path, extra: &[&str]) -> Proc {
+        // One database per data directory in the PostgreSQL matrix, kept in it across restarts.
+        let store_file = data_dir.join("matrix-store-url");
+        let store = std::fs::read_to_string(&store_file).ok().or_else(|| {
+            let url = crate::common::matrix_database()?;
+            std::fs::write(&store_file, &url).unwrap();
+            Some(url)
+        });
         let mut child = Command::new(env!("CARGO_BIN_EXE_meshatlas"))
             .args(["serve", "--addr", "127.0.0.1:0", "--workers", "1"])
             .arg("--data-dir")
             .arg(data_dir)
+            .args(store.iter().flat_map(|url| ["--store", url.as_str()]))
             .args(extra)
             .env("MESHATLAS_LOG", "warn")
             .stdout(Stdio::piped())

@@ -1,0 +1,154 @@
+//! A cluster of real `meshatlas` processes on one PostgreSQL database and one
+//! shared data directory: API processes (`serve --no-worker`) and workers
+//! (`worker`), each a child process on a loopback port.
+
+use std::io::{BufRead, BufReader};
+use std::path::{Path, PathBuf};
+use std::process::{Child, Command, Stdio};
+use std::time::{Duration, Instant};
+
+use serde_json::Value;
+
+/// Lease and heartbeat of the test clusters (seconds): short, so expiry
+/// tests take seconds.
+pub const LEASE: &str = "2";
+pub const HEARTBEAT: &str = "0.5";
+
+/// A fresh database on the server of `MESHATLAS_TEST_PG_URL`, or `None`
+/// (test skipped with a note) when it is unset outside CI; in CI an unset
+/// variable fails the test, so CI cannot pass by skipping.
+pub fn database() -> Option<String> {
+    let Ok(admin) = std::env::var("MESHATLAS_TEST_PG_URL") else {
+        assert!(std::env::var_os("CI").is_none(), "CI must set MESHATLAS_TEST_PG_URL (see .ci/run)");
+        eprintln!("MESHATLAS_TEST_PG_URL is unset: distributed tests skipped (source .ci/services.sh; start_postgres)");
+        return None;
+    };
+    Some(meshatlas::jobs::pg_store::create_test_database(&admin))
+}
+
+/// One child process and the base URL it listens on.
+pub struct Proc {
+    pub child: Child,
+    pub base: String,
+}
+
+impl Proc {
+    fn spawn(role: &[&str], store: &str, data: &Path, extra: &[&str]) -> Proc {
+        let mut child = Command::new(env!("CARGO_BIN_EXE_meshatlas"))
+            .args(role)
+            .args(["--addr", "127.0.0.1:0", "--store", store, "--lease-secs", LEASE, "--heartbeat-secs", HEARTBEAT])
+            .arg("--data-dir")
+            .arg(data)
+            .args(extra)
+            .env("MESHATLAS_LOG", "warn")
+            .stdout(Stdio::piped())
+            .stderr(Stdio::inherit())
+            .spawn()
+            .expect("start meshatlas");
+        let stdout = child.stdout.take().unwrap();
+        let mut line = String::new();
+        BufReader::new(stdout).read_line(&mut line).expect("read the listening line");
+        let addr =
+            line.trim().strip_prefix("listening on ").unwrap_or_else(|| panic!("unexpected first line {line:?}"));
+        Proc { child, base: format!("http://{addr}") }
+    }
+
+    /// `meshatlas serve --no-worker`.
+    pub fn api(store: &str, data: &Path, extra: &[&str]) -> Proc {
+        Self::spawn(&["serve", "--no-worker"], store, data, extra)
+    }
+
+    /// `meshatlas worker`.
+    pub fn worker(store: &str, data: &Path, extra: &[&str]) -> Proc {
+        Self::spawn(&["worker"], store, data, extra)
+    }
+
+    /// Sends `signal` (e.g. `-STOP`) to the process.
+    pub fn signal(&self, signal: &str) {
+        let pid = self.child.id().to_string();
+        assert!(Command::new("kill").args([signal, &pid]).status().unwrap().success());
+    }
+
+    /// SIGKILL and reap.
+    pub fn kill9(mut self) {
+        self.child.kill().unwrap();
+        self.child.wait().unwrap();
+    }
+
+    /// The value of the unlabelled metric `name` on this process's /metrics.
+    pub async fn metric(&self, client: &reqwest::Client, name: &str) -> f64 {
+        let text = client.get(format!("{}/metrics", self.base)).send().await.unwrap().text().await.unwrap();
+        text.lines()
+            .find_map(|l| l.strip_prefix(name).and_then(|v| v.strip_prefix(' ')))
+            .unwrap_or_else(|| panic!("no metric {name}"))
+            .trim()
+            .parse()
+            .unwrap()
+    }
+}
+
+impl Drop for Proc {
+    fn drop(&mut self) {
+        let _ = self.child.kill();
+        let _ = self.child.wait();
+    }
+}
+
+/// A test's database URL and shared data directory.
+pub struct Cluster {
+    pub store: String,
+    pub data: PathBuf,
+    _dir: tempfile::TempDir,
+    pub client: reqwest::Client,
+}
+
+impl Cluster {
+    /// A new database and data directory, or `None` without PostgreSQL.
+    pub fn new() -> Option<Cluster> {
+        let store = database()?;
+        let dir = tempfile::tempdir().unwrap();
+        Some(Cluster { store, data: dir.path().to_path_buf(), _dir: dir, client: reqwest::Client::new() })
+    }
+
+    pub fn api(&self, extra: &[&str]) -> Proc {
+        Proc::api(&self.store, &self.data, extra)
+    }
+
+    pub fn worker(&self, extra: &[&str]) -> Proc {
+        Proc::worker(&self.store, &self.data, extra)
+    }
+
+    /// Submits the test mesh through `api`; returns the job id.
+    pub async fn submit(&self, api: &Proc) -> String {
+        let r = self
+            .client
+            .post(format!("{}/v1/jobs?format=stl", api.base))
+            .body(crate::fixtures::stl_ascii(&crate::fixtures::mesh()))
+            .send()
+            .await
+            .unwrap();
+        assert_eq!(r.status(), 202);
+        r.json::<Value>().await.unwrap()["id"].as_str().unwrap().to_string()
+    }
+
+    pub async fn job(&self, api: &Proc, id: &str) -> Value {
+        self.client.get(format!("{}/v1/jobs/{id}", api.base)).send().await.unwrap().json().await.unwrap()
+    }
+
+    /// Polls `api` until job `id` satisfies `pred` (60 s at most).
+    pub async fn wait_for(&self, api: &Proc, id: &str, pred: impl Fn(&Value) -> bool) -> Value {
+        let start = Instant::now();
+        loop {
+            let j = self.job(api, id).await;
+            if pred(&j) {
+                return j;
+            }
+            assert!(start.elapsed() < Duration::from_secs(60), "timed out: {j:#}");
+            tokio::time::sleep(Duration::from_millis(25)).await;
+        }
+    }
+}
+
+pub fn is_final(j: &Value) -> bool {
+    matches!(j["state"].as_str(), Some("succeeded" | "failed" | "cancelled"))
+}
