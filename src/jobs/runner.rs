@@ -180,6 +180,10 @@ pub(crate) struct RunningJob {
     pub lease: Lease,
     /// When its last heartbeat was written.
     last_beat: Mutex<Instant>,
+    /// Its end is being written: a heartbeat that then finds the lease gone
+    /// has met the end's own write (or a fenced-out one, which the end
+    /// handles), and must not stop or report anything.
+    ending: AtomicBool,
     pub cancel: Arc<AtomicBool>,
     reason: Mutex<Option<StopReason>>,
     deadline: Instant,
@@ -200,6 +204,7 @@ impl RunningJob {
         Self {
             lease,
             last_beat: Mutex::new(now),
+            ending: AtomicBool::new(false),
             memory_estimate,
             alone,
             cancel: Arc::new(AtomicBool::new(false)),
@@ -317,6 +322,7 @@ fn beat(inner: &Inner, job: &RunningJob, row: Option<&ProgressRow>) {
                 job.stop(StopReason::Cancel);
             }
         }
+        Ok(Heartbeat::Lost) if job.ending.load(Ordering::Relaxed) => {}
         Ok(Heartbeat::Lost) => {
             if job.reason().is_none() {
                 warn!(job = %job.lease.id, attempt = job.lease.attempt, "the job's lease is lost; stopping it");
@@ -547,6 +553,7 @@ fn run_job(inner: &Arc<Inner>, rec: JobRecord, job: &Arc<RunningJob>) {
         }
     };
     let live_seconds = job.stage_seconds_now();
+    job.ending.store(true, Ordering::Relaxed);
     let final_state = record_result(inner, job, result, &out_dir, live_seconds, started);
     if let Some(state) = final_state {
         info!(state = state.as_str(), seconds = started.elapsed().as_secs_f64(), "job finished");
