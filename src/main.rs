@@ -13,6 +13,7 @@ use clap::{Args, Parser, Subcommand, value_parser};
 
 use meshatlas::http::auth::Auth;
 use meshatlas::http::{AppState, HttpLimits};
+use meshatlas::jobs::artifact_store::ArtifactLocation;
 use meshatlas::jobs::{
     Delayed, Executor, JobService, JobsConfig, Quotas, Retention, Stalled, StoreLocation, parse_retention,
     pipeline_executor::PipelineExecutor,
@@ -50,6 +51,13 @@ struct JobArgs {
     /// API and worker processes).
     #[arg(long, env = "MESHATLAS_STORE", value_parser = StoreLocation::parse)]
     store: Option<StoreLocation>,
+    /// Where uploads and artifacts are kept for good: `file://` (the data
+    /// directory, which every process must then share) or
+    /// `s3://BUCKET/PREFIX` (any S3-compatible store; AWS_ENDPOINT_URL,
+    /// AWS_ACCESS_KEY_ID, AWS_SECRET_ACCESS_KEY, AWS_REGION), when each
+    /// process's data directory holds only working copies.
+    #[arg(long, env = "MESHATLAS_ARTIFACTS", default_value = "file://", value_parser = ArtifactLocation::parse)]
+    artifacts: ArtifactLocation,
     /// Jobs run at the same time (1–1024).
     #[arg(
         long, env = "MESHATLAS_WORKERS", default_value_t = 1,
@@ -288,6 +296,7 @@ fn jobs_config(args: &JobArgs, run_jobs: bool) -> Result<JobsConfig, String> {
         lease,
         heartbeat,
         poll_interval,
+        artifacts: args.artifacts.clone(),
         ..JobsConfig::new(&args.data_dir)
     })
 }

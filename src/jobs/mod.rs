@@ -17,6 +17,8 @@
 //! runs on the rayon pool, store and file operations on tokio's blocking
 //! pool, and the async side only awaits.
 
+pub mod artifact_store;
+pub mod blocking_runtime;
 pub mod executor;
 pub mod memory;
 pub mod metrics;

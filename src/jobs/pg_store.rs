@@ -25,6 +25,8 @@ use std::sync::Arc;
 use std::time::Duration;
 
 use deadpool_postgres::{Pool, PoolConfig, Runtime, Timeouts};
+
+use super::blocking_runtime::BlockingRuntime;
 use tokio_postgres::NoTls;
 use tokio_postgres::types::ToSql;
 
@@ -116,23 +118,11 @@ fn read_row(r: &tokio_postgres::Row) -> Result<RawRow, StoreError> {
     raw().map_err(pg)
 }
 
-/// Owns the store's runtime; shuts it down without blocking when dropped
-/// (dropping a runtime inside async code would panic).
-struct OwnRuntime(Option<tokio::runtime::Runtime>);
-
-impl Drop for OwnRuntime {
-    fn drop(&mut self) {
-        if let Some(rt) = self.0.take() {
-            rt.shutdown_background();
-        }
-    }
-}
-
 /// The PostgreSQL job store.
 pub struct PgStore {
     pool: Pool,
     url: String,
-    rt: OwnRuntime,
+    rt: BlockingRuntime,
 }
 
 /// A parameter list of owned values, moved into a query's future.
@@ -150,11 +140,7 @@ impl PgStore {
     /// [`StoreError::Postgres`] when the server cannot be reached or a
     /// migration fails.
     pub fn connect(url: &str) -> Result<Self, StoreError> {
-        let rt = tokio::runtime::Builder::new_multi_thread()
-            .worker_threads(1)
-            .thread_name("meshatlas-postgres")
-            .enable_all()
-            .build()
+        let rt = BlockingRuntime::new("meshatlas-postgres")
             .map_err(|e| pg(format!("cannot start the database runtime: {e}")))?;
         let mut cfg = deadpool_postgres::Config::new();
         cfg.url = Some(url.to_string());
@@ -167,10 +153,10 @@ impl PgStore {
         };
         cfg.pool = Some(PoolConfig { timeouts, ..PoolConfig::new(8) });
         let pool = {
-            let _guard = rt.enter();
+            let _guard = rt.handle().map(tokio::runtime::Handle::enter);
             cfg.create_pool(Some(Runtime::Tokio1), NoTls).map_err(pg)?
         };
-        let store = Self { pool, url: url.to_string(), rt: OwnRuntime(Some(rt)) };
+        let store = Self { pool, url: url.to_string(), rt };
         store.run(|pool| async move { migrate(&pool).await })?;
         Ok(store)
     }
@@ -182,13 +168,7 @@ impl PgStore {
         T: Send + 'static,
         F: Future<Output = Result<T, StoreError>> + Send + 'static,
     {
-        let Some(rt) = &self.rt.0 else { return Err(pg("the database runtime is stopped")) };
-        let fut = f(self.pool.clone());
-        let (tx, rx) = std::sync::mpsc::sync_channel(1);
-        rt.spawn(async move {
-            let _ = tx.send(fut.await);
-        });
-        rx.recv().map_err(|_| pg("the database task stopped"))?
+        self.rt.run(f(self.pool.clone())).ok_or_else(|| pg("the database task stopped"))?
     }
 
     /// Runs one statement with `params`; returns the rows changed.
@@ -226,7 +206,7 @@ impl PgStore {
     /// every notification, until the store is dropped; reconnects after a
     /// lost connection (the caller polls meanwhile).
     pub fn listen(&self, wake: Arc<dyn Fn() + Send + Sync>) {
-        let Some(rt) = &self.rt.0 else { return };
+        let Some(rt) = self.rt.handle() else { return };
         let url = self.url.clone();
         rt.spawn(async move {
             loop {

@@ -73,6 +73,9 @@ fn sweep(inner: &Inner, max_age: Duration) -> usize {
         match inner.store.delete_if_final(id) {
             Ok(true) => {
                 remove_job_dir(&inner.config, id);
+                if let Err(e) = inner.artifacts.delete_prefix(&super::runner::JobsConfig::job_key(id), None) {
+                    error!(job = %id, error = %e, "retention sweep cannot remove the job's objects");
+                }
                 n += 1;
             }
             Ok(false) => {}

@@ -39,6 +39,7 @@ use crate::failure::FailureKind;
 use crate::pipeline::media_type_for;
 use crate::progress::{Progress, ProgressSink};
 
+use super::artifact_store::{ArtifactLocation, ArtifactStore};
 use super::executor::{ExecError, Executor, JobInput, JobOutcome};
 use super::metrics::Metrics;
 use super::model::{Artifact, JobError, JobId, JobRecord, JobState};
@@ -92,6 +93,8 @@ pub struct JobsConfig {
     /// dispatcher (a submission on this process, a job's end or a
     /// PostgreSQL notification wakes it at once). Default 100 ms.
     pub poll_interval: Duration,
+    /// Where uploads and artifacts are kept for good. Default: the data directory.
+    pub artifacts: ArtifactLocation,
 }
 
 impl JobsConfig {
@@ -116,6 +119,7 @@ impl JobsConfig {
             lease: Duration::from_secs(30),
             heartbeat: Duration::from_secs(3),
             poll_interval: Duration::from_millis(100),
+            artifacts: ArtifactLocation::Local,
         }
     }
 
@@ -144,7 +148,22 @@ impl JobsConfig {
     /// The stored upload of a job: `input/<name>` in its directory, under
     /// the (sanitized) client file name so reports show it.
     pub fn input_path(&self, id: JobId, input_name: &str) -> PathBuf {
-        self.job_dir(id).join("input").join(super::model::sanitize_file_name(input_name))
+        self.data_dir.join(Self::input_key(id, input_name))
+    }
+
+    /// The artifact-store key of a job's upload (its path under the data directory).
+    pub fn input_key(id: JobId, input_name: &str) -> String {
+        format!("jobs/{id}/input/{}", super::model::sanitize_file_name(input_name))
+    }
+
+    /// The artifact-store key of every object of a job.
+    pub fn job_key(id: JobId) -> String {
+        format!("jobs/{id}/")
+    }
+
+    /// The artifact-store key of the directory of one attempt's artifacts.
+    pub fn attempt_key(id: JobId, attempt: u32) -> String {
+        format!("jobs/{id}/out/{attempt}")
     }
 }
 
@@ -249,6 +268,8 @@ impl RunningJob {
 pub(crate) struct Inner {
     pub config: JobsConfig,
     pub store: Box<dyn JobStore>,
+    /// Where uploads and artifacts are kept for good.
+    pub artifacts: Arc<dyn ArtifactStore>,
     /// The name this process holds leases under.
     pub name: WorkerName,
     pub executor: Arc<dyn Executor>,
@@ -535,22 +556,25 @@ fn run_job(inner: &Arc<Inner>, rec: JobRecord, job: &Arc<RunningJob>) {
             };
             Ok(Err(ExecError::Failed(err)))
         }
-        Ok(()) => {
-            let input = JobInput {
-                id: rec.id,
-                input: inner.config.input_path(rec.id, &rec.input_name),
-                input_name: rec.input_name.clone(),
-                format: rec.format.clone(),
-                params: rec.params.clone(),
-                out_dir: out_dir.clone(),
-                max_triangles: inner.config.max_triangles,
-                max_tets: inner.config.max_tets,
-            };
-            let sink = Arc::new(JobSink { inner: inner.clone(), id: rec.id, job: job.clone() });
-            let progress = Progress::new(sink, job.cancel.clone());
-            let executor = inner.executor.clone();
-            std::panic::catch_unwind(AssertUnwindSafe(|| executor.execute(&input, &progress)))
-        }
+        Ok(()) => match fetch_input(inner, &rec) {
+            Err(err) => Ok(Err(ExecError::Failed(err))),
+            Ok(()) => {
+                let input = JobInput {
+                    id: rec.id,
+                    input: inner.config.input_path(rec.id, &rec.input_name),
+                    input_name: rec.input_name.clone(),
+                    format: rec.format.clone(),
+                    params: rec.params.clone(),
+                    out_dir: out_dir.clone(),
+                    max_triangles: inner.config.max_triangles,
+                    max_tets: inner.config.max_tets,
+                };
+                let sink = Arc::new(JobSink { inner: inner.clone(), id: rec.id, job: job.clone() });
+                let progress = Progress::new(sink, job.cancel.clone());
+                let executor = inner.executor.clone();
+                std::panic::catch_unwind(AssertUnwindSafe(|| executor.execute(&input, &progress)))
+            }
+        },
     };
     let live_seconds = job.stage_seconds_now();
     job.ending.store(true, Ordering::Relaxed);
@@ -558,8 +582,52 @@ fn run_job(inner: &Arc<Inner>, rec: JobRecord, job: &Arc<RunningJob>) {
     if let Some(state) = final_state {
         info!(state = state.as_str(), seconds = started.elapsed().as_secs_f64(), "job finished");
     }
+    if !inner.artifacts.is_local() {
+        // The bucket holds what was recorded; this machine's copy was scratch.
+        remove_job_dir(&inner.config, rec.id);
+    }
     inner.running().remove(&rec.id);
     inner.wake.notify_all();
+}
+
+/// Makes sure this machine has the job's upload (fetched from the artifact
+/// store when the data directory lacks it).
+fn fetch_input(inner: &Inner, rec: &JobRecord) -> Result<(), JobError> {
+    let key = JobsConfig::input_key(rec.id, &rec.input_name);
+    match inner.artifacts.fetch(&inner.config.data_dir, &key) {
+        Ok(true) => Ok(()),
+        Ok(false) => {
+            error!(key = %key, "the job's upload is missing from the artifact store");
+            Err(JobError::new(FailureKind::InternalError, "the server lost the job's upload"))
+        }
+        Err(e) => {
+            error!(error = %e, "cannot fetch the job's upload");
+            Err(storage::artifact_failure(FailureKind::StorageUnavailable))
+        }
+    }
+}
+
+/// Puts every artifact of the attempt of `lease` into the artifact store,
+/// under the attempt's key.
+fn upload_artifacts(
+    inner: &Inner,
+    lease: &Lease,
+    artifacts: &[Artifact],
+) -> Result<(), super::artifact_store::ArtifactError> {
+    let dir = JobsConfig::attempt_key(lease.id, lease.attempt);
+    for a in artifacts {
+        inner.artifacts.put(&inner.config.data_dir, &format!("{dir}/{}", a.name))?;
+    }
+    Ok(())
+}
+
+/// Removes a job's objects from the artifact store (all of them, or one
+/// attempt's), logging a failure: the record is what counts, and a sweep of
+/// the bucket can remove what is left.
+fn delete_objects(inner: &Inner, prefix: &str, keep: Option<&str>) {
+    if let Err(e) = inner.artifacts.delete_prefix(prefix, keep) {
+        warn!(prefix, error = %e, "cannot remove objects from the artifact store");
+    }
 }
 
 /// How a job ended, as it is to be written to the store.
@@ -685,6 +753,7 @@ fn write_ending(inner: &Inner, lease: &Lease, ending: &Ending) -> Result<Option<
     let written = match ending {
         Ending::Deleted => {
             remove_job_dir(&inner.config, lease.id);
+            delete_objects(inner, &JobsConfig::job_key(lease.id), None);
             return Ok(None);
         }
         Ending::Abandoned => false,
@@ -694,11 +763,21 @@ fn write_ending(inner: &Inner, lease: &Lease, ending: &Ending) -> Result<Option<
         }
         Ending::Cancelled => store.finish_cancelled(lease)?,
         Ending::Failed(e, secs) => store.finish_failed(lease, e, secs)?,
-        Ending::Succeeded(summary, secs, artifacts) => store.finish_succeeded(lease, summary, secs, artifacts)?,
+        Ending::Succeeded(summary, secs, artifacts) => {
+            // Uploaded before the record lists them; a failed upload fails the job.
+            if let Err(e) = upload_artifacts(inner, lease, artifacts) {
+                error!(error = %e, "cannot store the job's artifacts");
+                let failed = Ending::Failed(storage::artifact_failure(FailureKind::StorageUnavailable), secs.clone());
+                return write_ending(inner, lease, &failed);
+            }
+            store.finish_succeeded(lease, summary, secs, artifacts)?
+        }
     };
     if written {
         if matches!(ending, Ending::Succeeded(..)) {
             remove_other_attempts(&inner.config, lease.id, lease.attempt);
+            let keep = JobsConfig::attempt_key(lease.id, lease.attempt);
+            delete_objects(inner, &format!("jobs/{}/out/", lease.id), Some(&keep));
         }
         return Ok(Some(match ending {
             Ending::Cancelled => JobState::Cancelled,
@@ -708,9 +787,11 @@ fn write_ending(inner: &Inner, lease: &Lease, ending: &Ending) -> Result<Option<
     }
     if store.get(lease.id)?.is_none() {
         remove_job_dir(&inner.config, lease.id);
+        delete_objects(inner, &JobsConfig::job_key(lease.id), None);
     } else {
         info!(attempt = lease.attempt, "another attempt holds the job; this attempt's files are removed");
         remove_partial_artifacts(&inner.config.attempt_dir(lease.id, lease.attempt));
+        delete_objects(inner, &format!("{}/", JobsConfig::attempt_key(lease.id, lease.attempt)), None);
     }
     Ok(None)
 }

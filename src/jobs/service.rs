@@ -82,6 +82,9 @@ pub enum JobsError {
         /// The requested name.
         name: String,
     },
+    /// The artifact store (an S3 bucket) failed.
+    #[error(transparent)]
+    Artifacts(#[from] super::artifact_store::ArtifactError),
     /// A worker or blocking task failed unexpectedly.
     #[error("internal error: {0}")]
     Internal(String),
@@ -132,6 +135,7 @@ impl JobService {
         std::fs::create_dir_all(&tmp).map_err(io_err(format!("cannot create {}", tmp.display())))?;
         remove_old_entries(&tmp, IN_FLIGHT_AGE, |_| true).map_err(io_err(format!("cannot clean {}", tmp.display())))?;
         let store = open_store(&config.store)?;
+        let artifacts = super::artifact_store::open(&config.artifacts)?;
         let name = WorkerName::of_this_process();
         let recovery = store.reap_expired(config.max_attempts, &|owner| name.is_dead(owner))?;
         if !recovery.requeued.is_empty() || !recovery.failed.is_empty() || !recovery.crashed.is_empty() {
@@ -154,6 +158,7 @@ impl JobService {
         let inner = Arc::new(Inner {
             config: JobsConfig { workers, threads, ..config },
             store,
+            artifacts,
             name,
             executor,
             pool,
@@ -296,7 +301,15 @@ impl JobService {
                 memory_estimate_bytes: estimate,
                 tenant: new.tenant.as_deref(),
             };
+            if let Err(e) = inner.artifacts.put(&inner.config.data_dir, &JobsConfig::input_key(id, &input_name)) {
+                cleanup(inner);
+                return Err(e.into());
+            }
             let rec = inner.store.insert_queued(&row, inner.config.max_queued);
+            if !inner.artifacts.is_local() && !inner.config.run_jobs && matches!(rec, Ok(Some(_))) {
+                // The bucket has it; the worker that claims the job fetches it.
+                remove_job_dir(&inner.config, id);
+            }
             match rec {
                 Ok(Some(rec)) => {
                     inner.wake.notify_all();
@@ -309,6 +322,9 @@ impl JobService {
                 }
                 Err(e) => {
                     cleanup(inner);
+                    if let Err(e) = inner.artifacts.delete_prefix(&JobsConfig::job_key(id), None) {
+                        warn!(job = %id, error = %e, "cannot remove the upload of a refused job from the artifact store");
+                    }
                     Err(e.into())
                 }
             }
@@ -449,8 +465,12 @@ impl JobService {
         }
         let mut not_removed = Vec::new();
         if !matches!(at, Where::Here) || pending.is_none() {
-            not_removed =
-                self.blocking(move |inner| Ok(super::runner::remove_job_dir_reporting(&inner.config, id))).await?;
+            not_removed = self
+                .blocking(move |inner| {
+                    inner.artifacts.delete_prefix(&JobsConfig::job_key(id), None)?;
+                    Ok(super::runner::remove_job_dir_reporting(&inner.config, id))
+                })
+                .await?;
         }
         info!(job = %id, not_removed = not_removed.len(), "job deleted");
         Ok(Deletion { pending, not_removed })
@@ -469,6 +489,14 @@ impl JobService {
                 .find(|a| a.name == name)
                 .cloned()
                 .ok_or(JobsError::ArtifactNotFound { id, name })?;
+            if !inner.artifacts.is_local() {
+                // Fetched into this machine's data directory on first use, then served as a file.
+                let key = format!("{}/{}", JobsConfig::attempt_key(id, rec.attempts), art.name);
+                if !inner.artifacts.fetch(&inner.config.data_dir, &key)? {
+                    return Err(JobsError::Internal(format!("artifact {key} is missing from the artifact store")));
+                }
+                return Ok((inner.config.data_dir.join(key), art));
+            }
             Ok((inner.config.artifact_path(id, rec.attempts, &art.name), art))
         })
         .await
@@ -512,6 +540,9 @@ impl JobService {
             let mut problems = Vec::new();
             if let Err(e) = super::storage::probe_data_dir(&inner.config.data_dir) {
                 problems.push(e);
+            }
+            if let Err(e) = inner.artifacts.probe() {
+                problems.push(format!("the artifact store does not take a write: {e}"));
             }
             if let Err(e) = inner.store.probe_write() {
                 let kind = super::storage::store_error_kind(&e).map(|k| format!(" ({k})")).unwrap_or_default();

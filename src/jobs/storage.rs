@@ -54,6 +54,7 @@ pub fn jobs_error_kind(e: &JobsError) -> Option<FailureKind> {
     match e {
         JobsError::Io { source, .. } => storage_kind(source),
         JobsError::Store(s) => store_error_kind(s),
+        JobsError::Artifacts(_) => Some(FailureKind::StorageUnavailable),
         _ => None,
     }
 }

@@ -25,6 +25,7 @@ impl Server {
         let mut cfg = JobsConfig { progress_interval: Duration::from_millis(10), ..JobsConfig::new(dir.path()) };
         if let Some(url) = matrix_database() {
             cfg.store = meshatlas::jobs::StoreLocation::Postgres(url);
+            cfg.artifacts = matrix_bucket();
         }
         let mut limits = HttpLimits::default();
         tweak(&mut cfg, &mut limits);
@@ -101,6 +102,18 @@ pub fn matrix_database() -> Option<String> {
         }
         Ok("") | Ok("sqlite") | Err(_) => None,
         Ok(other) => panic!("MESHATLAS_TEST_MATRIX must be sqlite or postgres, not {other}"),
+    }
+}
+
+/// The artifact store of the PostgreSQL matrix: a fresh prefix of the S3
+/// test bucket (`MESHATLAS_TEST_S3_BUCKET`, endpoint and keys from the
+/// `AWS_*` variables `.ci/services.sh` exports).
+pub fn matrix_bucket() -> meshatlas::jobs::artifact_store::ArtifactLocation {
+    let bucket =
+        std::env::var("MESHATLAS_TEST_S3_BUCKET").expect("MESHATLAS_TEST_MATRIX=postgres needs the S3 test bucket");
+    meshatlas::jobs::artifact_store::ArtifactLocation::S3 {
+        bucket,
+        prefix: format!("t_{}", uuid::Uuid::new_v4().simple()),
     }
 }
 

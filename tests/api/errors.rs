@@ -203,7 +203,14 @@ async fn server_errors_are_generic_and_job_failures_are_problems() {
     let id = job["id"].as_str().unwrap();
     let done = s.wait_final(id).await;
     assert_eq!(done["state"], "succeeded");
-    std::fs::remove_file(s.dir.path().join("jobs").join(id).join("out/1/a.json")).unwrap();
+    // The file is in the data directory, or (PostgreSQL matrix) an object in the bucket.
+    let artifacts = &s.jobs.config().artifacts;
+    if *artifacts == meshatlas::jobs::artifact_store::ArtifactLocation::Local {
+        std::fs::remove_file(s.dir.path().join("jobs").join(id).join("out/1/a.json")).unwrap();
+    } else {
+        let bucket = meshatlas::jobs::artifact_store::open(artifacts).unwrap();
+        bucket.delete_prefix(&format!("jobs/{id}/out/1/"), None).unwrap();
+    }
     let r = s.client.get(s.url(&format!("/v1/jobs/{id}/artifacts/a.json"))).send().await.unwrap();
     let body = expect_problem(r, 500, "internal-error").await;
     assert!(!body["detail"].as_str().unwrap().contains("a.json"), "no internals in 5xx: {body}");

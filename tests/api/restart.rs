@@ -23,14 +23,24 @@ impl Proc {
         let store_file = data_dir.join("matrix-store-url");
         let store = std::fs::read_to_string(&store_file).ok().or_else(|| {
             let url = crate::common::matrix_database()?;
-            std::fs::write(&store_file, &url).unwrap();
-            Some(url)
+            let meshatlas::jobs::artifact_store::ArtifactLocation::S3 { bucket, prefix } =
+                crate::common::matrix_bucket()
+            else {
+                unreachable!()
+            };
+            std::fs::write(&store_file, format!("{url}\ns3://{bucket}/{prefix}")).unwrap();
+            std::fs::read_to_string(&store_file).ok()
         });
+        let (store, artifacts) = match store.as_deref().and_then(|s| s.split_once('\n')) {
+            Some((s, a)) => (Some(s.to_string()), Some(a.to_string())),
+            None => (None, None),
+        };
         let mut child = Command::new(env!("CARGO_BIN_EXE_meshatlas"))
             .args(["serve", "--addr", "127.0.0.1:0", "--workers", "1"])
             .arg("--data-dir")
             .arg(data_dir)
             .args(store.iter().flat_map(|url| ["--store", url.as_str()]))
+            .args(artifacts.iter().flat_map(|url| ["--artifacts", url.as_str()]))
             .args(extra)
             .env("MESHATLAS_LOG", "warn")
             .stdout(Stdio::piped())

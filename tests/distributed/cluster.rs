@@ -1,6 +1,9 @@
-//! A cluster of real `meshatlas` processes on one PostgreSQL database and one
-//! shared data directory: API processes (`serve --no-worker`) and workers
-//! (`worker`), each a child process on a loopback port.
+//! A cluster of real `meshatlas` processes on one PostgreSQL database: API
+//! processes (`serve --no-worker`) and workers (`worker`), each a child
+//! process on a loopback port. Artifacts are either one data directory
+//! shared by all ([`Artifacts::SharedDir`]) or an S3 bucket
+//! ([`Artifacts::S3`], the SeaweedFS `.ci/run` starts), each process then
+//! with a data directory of its own.
 
 use std::io::{BufRead, BufReader};
 use std::path::{Path, PathBuf};
@@ -33,10 +36,11 @@ pub struct Proc {
 }
 
 impl Proc {
-    fn spawn(role: &[&str], store: &str, data: &Path, extra: &[&str]) -> Proc {
+    fn spawn(role: &[&str], store: &str, artifacts: &str, data: &Path, extra: &[&str]) -> Proc {
         let mut child = Command::new(env!("CARGO_BIN_EXE_meshatlas"))
             .args(role)
             .args(["--addr", "127.0.0.1:0", "--store", store, "--lease-secs", LEASE, "--heartbeat-secs", HEARTBEAT])
+            .args(["--artifacts", artifacts])
             .arg("--data-dir")
             .arg(data)
             .args(extra)
@@ -51,16 +55,6 @@ impl Proc {
         let addr =
             line.trim().strip_prefix("listening on ").unwrap_or_else(|| panic!("unexpected first line {line:?}"));
         Proc { child, base: format!("http://{addr}") }
-    }
-
-    /// `meshatlas serve --no-worker`.
-    pub fn api(store: &str, data: &Path, extra: &[&str]) -> Proc {
-        Self::spawn(&["serve", "--no-worker"], store, data, extra)
-    }
-
-    /// `meshatlas worker`.
-    pub fn worker(store: &str, data: &Path, extra: &[&str]) -> Proc {
-        Self::spawn(&["worker"], store, data, extra)
     }
 
     /// Sends `signal` (e.g. `-STOP`) to the process.
@@ -94,28 +88,89 @@ impl Drop for Proc {
     }
 }
 
-/// A test's database URL and shared data directory.
+/// Where a cluster keeps artifacts.
+#[derive(Clone, Copy, PartialEq, Eq, Debug)]
+pub enum Artifacts {
+    /// One data directory for every process.
+    SharedDir,
+    /// A fresh prefix of the test bucket; a data directory per process.
+    S3,
+}
+
+/// A test's database, artifact store and data directories.
 pub struct Cluster {
     pub store: String,
-    pub data: PathBuf,
-    _dir: tempfile::TempDir,
+    pub artifacts: Artifacts,
+    /// `--artifacts` of every process.
+    artifacts_url: String,
+    root: tempfile::TempDir,
+    procs: std::sync::atomic::AtomicUsize,
     pub client: reqwest::Client,
 }
 
 impl Cluster {
-    /// A new database and data directory, or `None` without PostgreSQL.
-    pub fn new() -> Option<Cluster> {
+    /// A new database and artifact store, or `None` without the servers.
+    pub fn new(artifacts: Artifacts) -> Option<Cluster> {
+        let artifacts_url = match artifacts {
+            Artifacts::SharedDir => "file://".to_string(),
+            Artifacts::S3 => {
+                let Ok(_) = std::env::var("MESHATLAS_TEST_S3_ENDPOINT") else {
+                    assert!(std::env::var_os("CI").is_none(), "CI must set MESHATLAS_TEST_S3_ENDPOINT (see .ci/run)");
+                    eprintln!("MESHATLAS_TEST_S3_ENDPOINT is unset: S3 cluster tests skipped");
+                    return None;
+                };
+                let bucket = std::env::var("MESHATLAS_TEST_S3_BUCKET").unwrap_or_else(|_| "meshatlas".into());
+                format!("s3://{bucket}/t_{}", uuid::Uuid::new_v4().simple())
+            }
+        };
         let store = database()?;
-        let dir = tempfile::tempdir().unwrap();
-        Some(Cluster { store, data: dir.path().to_path_buf(), _dir: dir, client: reqwest::Client::new() })
+        let root = tempfile::tempdir().unwrap();
+        Some(Cluster {
+            store,
+            artifacts,
+            artifacts_url,
+            root,
+            procs: Default::default(),
+            client: reqwest::Client::new(),
+        })
     }
 
+    /// The data directory of the next process: the shared one, or a new one with S3.
+    fn data_dir(&self) -> PathBuf {
+        let dir = match self.artifacts {
+            Artifacts::SharedDir => self.root.path().join("shared"),
+            Artifacts::S3 => {
+                let n = self.procs.fetch_add(1, std::sync::atomic::Ordering::Relaxed);
+                self.root.path().join(format!("p{n}"))
+            }
+        };
+        std::fs::create_dir_all(&dir).unwrap();
+        dir
+    }
+
+    /// `meshatlas serve --no-worker`.
     pub fn api(&self, extra: &[&str]) -> Proc {
-        Proc::api(&self.store, &self.data, extra)
+        Proc::spawn(&["serve", "--no-worker"], &self.store, &self.artifacts_url, &self.data_dir(), extra)
     }
 
+    /// `meshatlas worker`.
     pub fn worker(&self, extra: &[&str]) -> Proc {
-        Proc::worker(&self.store, &self.data, extra)
+        Proc::spawn(&["worker"], &self.store, &self.artifacts_url, &self.data_dir(), extra)
+    }
+
+    /// Whether any copy of the file `key` (`jobs/<id>/…`) is left: in the
+    /// shared directory, or in the bucket.
+    pub fn stored(&self, key: &str) -> bool {
+        match self.artifacts {
+            Artifacts::SharedDir => self.root.path().join("shared").join(key).exists(),
+            Artifacts::S3 => {
+                use meshatlas::jobs::artifact_store::{ArtifactLocation, open};
+                let url = &self.artifacts_url;
+                let store = open(&ArtifactLocation::parse(url).unwrap()).unwrap();
+                let probe = tempfile::tempdir().unwrap();
+                store.fetch(probe.path(), key).unwrap()
+            }
+        }
     }
 
     /// Submits the test mesh through `api`; returns the job id.

@@ -11,7 +11,7 @@ mod cluster;
 
 use std::time::{Duration, Instant};
 
-use cluster::{Cluster, is_final};
+use cluster::{Artifacts, Cluster, is_final};
 use serde_json::Value;
 
 /// The names and bytes of a finished job's artifacts, downloaded through `api`.
@@ -27,9 +27,7 @@ async fn artifacts(c: &Cluster, api: &cluster::Proc, job: &Value) -> Vec<(String
     out
 }
 
-#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
-async fn sixty_jobs_over_two_apis_and_three_workers_each_run_once() {
-    let Some(c) = Cluster::new() else { return };
+async fn sixty_jobs_over_two_apis_and_three_workers_each_run_once(c: Cluster) {
     let apis = [c.api(&["--max-queued", "1000"]), c.api(&["--max-queued", "1000"])];
     let workers = [c.worker(&[]), c.worker(&[]), c.worker(&[])];
     let mut ids = Vec::new();
@@ -59,9 +57,7 @@ async fn sixty_jobs_over_two_apis_and_three_workers_each_run_once() {
     assert!(claims.iter().all(|&n| n > 0.0), "every worker takes part: {claims:?}");
 }
 
-#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
-async fn a_killed_workers_job_is_rerun_by_another_worker() {
-    let Some(c) = Cluster::new() else { return };
+async fn a_killed_workers_job_is_rerun_by_another_worker(c: Cluster) {
     let api = c.api(&[]);
     let slow = c.worker(&["--test-job-delay-ms", "20000"]);
     let id = c.submit(&api).await;
@@ -75,9 +71,7 @@ async fn a_killed_workers_job_is_rerun_by_another_worker() {
     assert_eq!(other.metric(&c.client, "meshatlas_lease_expiries_total").await, 1.0);
 }
 
-#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
-async fn a_paused_workers_late_attempt_never_replaces_the_new_one() {
-    let Some(c) = Cluster::new() else { return };
+async fn a_paused_workers_late_attempt_never_replaces_the_new_one(c: Cluster) {
     let api = c.api(&[]);
     // The first worker waits 2.5 s before the pipeline; it is paused inside that wait.
     let paused = c.worker(&["--test-job-delay-ms", "2500"]);
@@ -93,7 +87,7 @@ async fn a_paused_workers_late_attempt_never_replaces_the_new_one() {
     // Resumed past its delay, the old attempt runs the pipeline at once and
     // tries to finish; its lease is gone, so nothing of it may land.
     paused.signal("-CONT");
-    let attempt1 = c.data.join("jobs").join(&id).join("out").join("1");
+    let attempt1 = format!("jobs/{id}/out/1/report.json");
     let start = Instant::now();
     while start.elapsed() < Duration::from_secs(5) {
         tokio::time::sleep(Duration::from_millis(100)).await;
@@ -102,13 +96,12 @@ async fn a_paused_workers_late_attempt_never_replaces_the_new_one() {
     assert_eq!((after["state"].as_str(), after["attempts"].as_u64()), (Some("succeeded"), Some(2)), "{after:#}");
     assert_eq!(after["artifacts"], j["artifacts"]);
     assert_eq!(artifacts(&c, &api, &after).await, before, "the late attempt changed the artifacts");
-    assert!(!attempt1.exists(), "the late attempt's files are removed");
+    assert!(!c.stored(&attempt1), "the late attempt's files are removed");
+    assert!(c.stored(&format!("jobs/{id}/out/2/report.json")), "the winner's files stay");
     drop(other);
 }
 
-#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
-async fn cancel_and_delete_through_one_api_stop_a_job_running_behind_another() {
-    let Some(c) = Cluster::new() else { return };
+async fn cancel_and_delete_through_one_api_stop_a_job_running_behind_another(c: Cluster) {
     let (a, b) = (c.api(&[]), c.api(&[]));
     let w = c.worker(&["--test-job-delay-ms", "30000", "--workers", "2"]);
     let (x, y) = (c.submit(&b).await, c.submit(&b).await);
@@ -123,6 +116,9 @@ async fn cancel_and_delete_through_one_api_stop_a_job_running_behind_another() {
     let bound = Duration::from_secs_f64(cluster::HEARTBEAT.parse::<f64>().unwrap() + 1.0);
     assert!(t.elapsed() <= bound, "cancel took {:?} (bound {bound:?})", t.elapsed());
 
+    let input = c.job(&b, &y).await["input"]["name"].as_str().unwrap().to_string();
+    let input_key = format!("jobs/{y}/input/{input}");
+    assert!(c.stored(&input_key), "the upload is stored");
     let t = Instant::now();
     let r = c.client.delete(format!("{}/v1/jobs/{y}", a.base)).send().await.unwrap();
     assert!(r.status() == 202 || r.status() == 204, "{}", r.status());
@@ -134,17 +130,14 @@ async fn cancel_and_delete_through_one_api_stop_a_job_running_behind_another() {
         assert!(t.elapsed() <= bound, "the deleted job still runs after {:?}", t.elapsed());
         tokio::time::sleep(Duration::from_millis(50)).await;
     }
-    let dir = c.data.join("jobs").join(&y);
     let start = Instant::now();
-    while dir.exists() && start.elapsed() < Duration::from_secs(5) {
+    while c.stored(&input_key) && start.elapsed() < Duration::from_secs(5) {
         tokio::time::sleep(Duration::from_millis(50)).await;
     }
-    assert!(!dir.exists(), "the deleted job's files are removed");
+    assert!(!c.stored(&input_key), "the deleted job's files are removed");
 }
 
-#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
-async fn restarting_every_process_at_once_loses_no_job_and_finishes_each_once() {
-    let Some(c) = Cluster::new() else { return };
+async fn restarting_every_process_at_once_loses_no_job_and_finishes_each_once(c: Cluster) {
     let slow = ["--test-job-delay-ms", "400", "--workers", "2"];
     let apis = [c.api(&["--max-queued", "100"]), c.api(&["--max-queued", "100"])];
     let workers = [c.worker(&slow), c.worker(&slow)];
@@ -170,9 +163,7 @@ async fn restarting_every_process_at_once_loses_no_job_and_finishes_each_once() 
     assert!(listed.iter().all(|j| j["state"] == "succeeded"));
 }
 
-#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
-async fn a_worker_with_a_small_budget_leaves_a_large_job_to_a_larger_one() {
-    let Some(c) = Cluster::new() else { return };
+async fn a_worker_with_a_small_budget_leaves_a_large_job_to_a_larger_one(c: Cluster) {
     let api = c.api(&[]);
     let small = c.worker(&["--memory-budget", "1KiB"]);
     let id = c.submit(&api).await;
@@ -186,3 +177,37 @@ async fn a_worker_with_a_small_budget_leaves_a_large_job_to_a_larger_one() {
     assert_eq!(small.metric(&c.client, "meshatlas_claims_total").await, 0.0);
     assert_eq!(large.metric(&c.client, "meshatlas_claims_total").await, 1.0);
 }
+
+/// Each scenario twice: artifacts in one shared data directory, and in an
+/// S3 bucket with a data directory per process.
+macro_rules! on_both_artifact_stores {
+    ($($name:ident),* $(,)?) => {
+        mod shared_dir {
+            $(
+                #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+                async fn $name() {
+                    let Some(c) = super::Cluster::new(super::Artifacts::SharedDir) else { return };
+                    super::$name(c).await;
+                }
+            )*
+        }
+        mod s3 {
+            $(
+                #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+                async fn $name() {
+                    let Some(c) = super::Cluster::new(super::Artifacts::S3) else { return };
+                    super::$name(c).await;
+                }
+            )*
+        }
+    };
+}
+
+on_both_artifact_stores!(
+    sixty_jobs_over_two_apis_and_three_workers_each_run_once,
+    a_killed_workers_job_is_rerun_by_another_worker,
+    a_paused_workers_late_attempt_never_replaces_the_new_one,
+    cancel_and_delete_through_one_api_stop_a_job_running_behind_another,
+    restarting_every_process_at_once_loses_no_job_and_finishes_each_once,
+    a_worker_with_a_small_budget_leaves_a_large_job_to_a_larger_one,
+);
