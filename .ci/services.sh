@@ -27,12 +27,13 @@ pg_bin() {
     ls -d /usr/lib/postgresql/*/bin | sort -V | tail -1
 }
 
-# Runs a command as the postgres user (or as is when not root).
-as_postgres() {
+# The prefix that runs a command as the postgres user (empty when not
+# root). An array, not a function: a function run with `&` is a subshell
+# whose PID is not the server's, and SIGINT to it would not stop PostgreSQL.
+pg_user_prefix() {
+    PG_AS=()
     if [ "$(id -u)" = "0" ]; then
-        setpriv --reuid=postgres --regid=postgres --init-groups "$@"
-    else
-        "$@"
+        PG_AS=(setpriv --reuid=postgres --regid=postgres --init-groups)
     fi
 }
 
@@ -45,9 +46,10 @@ start_postgres() {
     bin="$(pg_bin)"
     mkdir -p "$d"
     [ "$(id -u)" = "0" ] && chown postgres: "$d"
-    as_postgres "$bin/initdb" -D "$d/data" -U meshatlas --auth=trust -E UTF8 --no-sync >"$d/initdb.log" 2>&1 \
+    pg_user_prefix
+    "${PG_AS[@]}" "$bin/initdb" -D "$d/data" -U meshatlas --auth=trust -E UTF8 --no-sync >"$d/initdb.log" 2>&1 \
         || { cat "$d/initdb.log"; return 1; }
-    as_postgres "$bin/postgres" -D "$d/data" -p "$PG_PORT" -k "$d" -c listen_addresses=127.0.0.1 \
+    "${PG_AS[@]}" "$bin/postgres" -D "$d/data" -p "$PG_PORT" -k "$d" -c listen_addresses=127.0.0.1 \
         -c fsync=off -c synchronous_commit=off -c full_page_writes=off -c max_connections=300 \
         >"$d/postgres.log" 2>&1 &
     PG_PID=$!
