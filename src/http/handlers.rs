@@ -55,6 +55,7 @@ pub fn job_json(rec: &JobRecord) -> Value {
         "crashes": rec.crashes,
         "memory_estimate_bytes": rec.memory_estimate_bytes,
         "stop_requested": rec.stop_requested,
+        "status_message": rec.status_message,
         "summary": rec.summary,
         "error": rec.error.as_ref().map(ApiError::job_problem),
         "artifacts": artifacts,

@@ -171,6 +171,10 @@ pub struct JobRecord {
     /// A stop (cancel or delete) was asked and the job has not stopped yet
     /// (live, not stored).
     pub stop_requested: bool,
+    /// Why a queued job cannot start now, when the reason is not just the
+    /// jobs ahead of it (no live worker, or none with a large enough
+    /// memory budget); computed when read, not stored.
+    pub status_message: Option<String>,
 }
 
 /// A job to insert: the upload has already been written to `upload_path`.

@@ -48,9 +48,10 @@ const QUEUE_LOCK: i64 = 0x6d65_7368_6174_6c02;
 const NOW_MS: &str = "(extract(epoch from clock_timestamp()) * 1000)::bigint";
 
 /// Numbered schema changes, applied in order, each once.
-const MIGRATIONS: &[(i32, &str)] = &[(
-    1,
-    "CREATE TABLE jobs (
+const MIGRATIONS: &[(i32, &str)] = &[
+    (
+        1,
+        "CREATE TABLE jobs (
         seq                   BIGSERIAL PRIMARY KEY,
         id                    TEXT NOT NULL UNIQUE,
         state                 TEXT NOT NULL,
@@ -79,7 +80,16 @@ const MIGRATIONS: &[(i32, &str)] = &[(
     );
     CREATE INDEX jobs_by_state ON jobs (state, seq);
     CREATE INDEX jobs_by_tenant ON jobs (tenant, seq);",
-)];
+    ),
+    (
+        2,
+        "CREATE TABLE workers (
+        name          TEXT PRIMARY KEY,
+        memory_budget BIGINT NOT NULL,
+        last_seen_ms  BIGINT NOT NULL
+    );",
+    ),
+];
 
 /// The SQL condition "running under lease $1 (id), $2 (attempt), $3 (owner)".
 const FENCE: &str = "id = $1 AND attempts = $2 AND lease_owner = $3 AND state = 'running'";
@@ -616,6 +626,28 @@ impl JobStore for PgStore {
     fn all_ids(&self) -> Result<Vec<String>, StoreError> {
         let rows = self.query("SELECT id FROM jobs".into(), vec![])?;
         rows.iter().map(|r| r.try_get(0).map_err(pg)).collect()
+    }
+
+    fn register_worker(&self, name: &str, memory_budget: u64) -> Result<(), StoreError> {
+        self.execute(
+            format!(
+                "INSERT INTO workers (name, memory_budget, last_seen_ms) VALUES ($1, $2, {NOW_MS}) \
+                 ON CONFLICT (name) DO UPDATE SET memory_budget = excluded.memory_budget, \
+                 last_seen_ms = excluded.last_seen_ms"
+            ),
+            vec![Box::new(name.to_string()), Box::new(as_i64(memory_budget))],
+        )?;
+        self.execute(format!("DELETE FROM workers WHERE last_seen_ms < {NOW_MS} - 86400000"), vec![])?;
+        Ok(())
+    }
+
+    fn largest_worker_budget(&self, within: Duration) -> Result<Option<u64>, StoreError> {
+        let rows = self.query(
+            format!("SELECT max(memory_budget) FROM workers WHERE last_seen_ms >= {NOW_MS} - $1"),
+            vec![Box::new(lease_ms(within))],
+        )?;
+        let max: Option<i64> = rows.first().map(|r| r.try_get(0)).transpose().map_err(pg)?.flatten();
+        Ok(max.map(|b| u64::try_from(b).unwrap_or(0)))
     }
 
     fn wake_on_new_jobs(&self, wake: Arc<dyn Fn() + Send + Sync>) {

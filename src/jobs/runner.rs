@@ -311,7 +311,15 @@ impl PendingProgress {
 /// any process) cancels it.
 pub(crate) fn heartbeat_loop(inner: Arc<Inner>) {
     let pending = &inner.progress;
+    let mut registered = Instant::now();
     while !inner.shutdown.load(Ordering::Relaxed) {
+        if registered.elapsed() >= inner.config.heartbeat {
+            // The worker's own heartbeat: alive, with this budget.
+            if let Err(e) = inner.store.register_worker(inner.name.as_str(), inner.config.memory_budget) {
+                warn!(error = %e, "cannot renew this worker's registration");
+            }
+            registered = Instant::now();
+        }
         let mut rows = {
             let mut rows = lock(&pending.rows);
             if rows.is_empty() {

@@ -348,12 +348,15 @@ impl JobService {
     pub async fn list(&self, limit: usize, cursor: Option<i64>, tenant: Option<String>) -> Result<JobPage, JobsError> {
         self.blocking(move |inner| {
             let mut page = inner.store.list(limit, cursor, tenant.as_deref())?;
-            let running = inner.running();
-            for rec in &mut page.jobs {
-                if let Some(job) = running.get(&rec.id) {
-                    overlay_live(rec, job);
+            {
+                let running = inner.running();
+                for rec in &mut page.jobs {
+                    if let Some(job) = running.get(&rec.id) {
+                        overlay_live(rec, job);
+                    }
                 }
             }
+            annotate_queued(inner, &mut page.jobs)?;
             Ok(page)
         })
         .await
@@ -513,7 +516,7 @@ impl JobService {
                 queue_depth: jobs_by_state.get(&JobState::Queued).copied().unwrap_or(0),
                 jobs_by_state,
                 workers_busy: inner.running().len() as u64,
-                workers: inner.config.workers as u64,
+                workers: if inner.config.run_jobs { inner.config.workers as u64 } else { 0 },
             };
             Ok(inner.metrics.render(&g))
         })
@@ -600,7 +603,34 @@ fn get_live(inner: &Inner, id: JobId) -> Result<JobRecord, JobsError> {
     {
         overlay_live(&mut rec, job);
     }
+    annotate_queued(inner, std::slice::from_mut(&mut rec))?;
     Ok(rec)
+}
+
+/// Sets the [`JobRecord::status_message`] of the queued jobs among `recs`:
+/// no worker seen within a lease period, or an estimate above the largest
+/// live worker's budget (asked of the store once, and only when a job is
+/// queued).
+fn annotate_queued(inner: &Inner, recs: &mut [JobRecord]) -> Result<(), JobsError> {
+    if !recs.iter().any(|r| r.state == JobState::Queued) {
+        return Ok(());
+    }
+    let within = inner.config.lease;
+    let largest = inner.store.largest_worker_budget(within)?;
+    for rec in recs.iter_mut().filter(|r| r.state == JobState::Queued) {
+        rec.status_message = match largest {
+            None => {
+                Some(format!("no worker has been seen in the last {} s; the job waits for one", within.as_secs_f64()))
+            }
+            Some(b) if rec.memory_estimate_bytes > b => Some(format!(
+                "the job's estimated peak memory of {} bytes exceeds the memory budget of every live worker \
+                 (the largest is {b} bytes); it waits for a worker with a larger --memory-budget",
+                rec.memory_estimate_bytes
+            )),
+            Some(_) => None,
+        };
+    }
+    Ok(())
 }
 
 /// Where a job that was asked to stop was running.
@@ -634,6 +664,10 @@ fn start_worker_threads(inner: &Arc<Inner>) -> Result<(), JobsError> {
             .map(drop)
             .map_err(|e| JobsError::Internal(format!("cannot start the {name} thread: {e}")))
     };
+    // Registered before the first request can ask whether a worker is alive.
+    if let Err(e) = inner.store.register_worker(inner.name.as_str(), inner.config.memory_budget) {
+        warn!(error = %e, "cannot register this worker in the store");
+    }
     let (h, r, d) = (inner.clone(), inner.clone(), inner.clone());
     spawn("heartbeat", Box::new(move || super::runner::heartbeat_loop(h)))?;
     spawn("recorder", Box::new(move || super::runner::recorder_loop(r)))?;

@@ -45,6 +45,11 @@ CREATE TABLE IF NOT EXISTS jobs (
     attempts      INTEGER NOT NULL DEFAULT 0
 );
 CREATE INDEX IF NOT EXISTS jobs_by_state ON jobs(state, seq);
+CREATE TABLE IF NOT EXISTS workers (
+    name          TEXT    PRIMARY KEY,
+    memory_budget INTEGER NOT NULL,
+    last_seen_ms  INTEGER NOT NULL
+);
 ";
 
 /// Indexes over added columns (created after the columns exist).
@@ -492,6 +497,26 @@ impl JobStore for SqliteStore {
         let mut stmt = conn.prepare("SELECT id FROM jobs")?;
         let ids = stmt.query_map([], |r| r.get::<_, String>(0))?.collect::<Result<Vec<_>, _>>()?;
         Ok(ids)
+    }
+
+    fn register_worker(&self, name: &str, memory_budget: u64) -> Result<(), StoreError> {
+        let now = now_ms();
+        let conn = self.conn();
+        conn.execute(
+            "INSERT INTO workers (name, memory_budget, last_seen_ms) VALUES (?1, ?2, ?3) ON CONFLICT(name) \
+             DO UPDATE SET memory_budget = excluded.memory_budget, last_seen_ms = excluded.last_seen_ms",
+            params![name, as_i64(memory_budget), now],
+        )?;
+        conn.execute("DELETE FROM workers WHERE last_seen_ms < ?1", [now - 86_400_000])?;
+        Ok(())
+    }
+
+    fn largest_worker_budget(&self, within: Duration) -> Result<Option<u64>, StoreError> {
+        let since = now_ms().saturating_sub(lease_ms(within));
+        let max: Option<i64> =
+            self.conn()
+                .query_row("SELECT max(memory_budget) FROM workers WHERE last_seen_ms >= ?1", [since], |r| r.get(0))?;
+        Ok(max.map(|b| u64::try_from(b).unwrap_or(0)))
     }
 }
 

@@ -384,6 +384,20 @@ pub trait JobStore: Send + Sync {
     /// [`StoreError`] on database failure.
     fn all_ids(&self) -> Result<Vec<String>, StoreError>;
 
+    /// Records that the worker `name` is alive with `memory_budget`, and
+    /// forgets workers not seen for a day.
+    ///
+    /// # Errors
+    /// [`StoreError`] on database failure.
+    fn register_worker(&self, name: &str, memory_budget: u64) -> Result<(), StoreError>;
+
+    /// The largest memory budget among the workers seen within `within`;
+    /// `None` when no worker was.
+    ///
+    /// # Errors
+    /// [`StoreError`] on database failure.
+    fn largest_worker_budget(&self, within: Duration) -> Result<Option<u64>, StoreError>;
+
     /// Calls `wake` whenever a job is queued or put back by any process
     /// (PostgreSQL notifications). The default does nothing: a submission
     /// on this process wakes its dispatcher directly, and dispatchers poll.
@@ -470,6 +484,7 @@ impl RawRow {
             memory_estimate_bytes: u64::try_from(self.memory_estimate_bytes).unwrap_or(0),
             crashes: u32::try_from(self.crashes).unwrap_or(0),
             stop_requested: self.cancel_requested && state == JobState::Running,
+            status_message: None,
         })
     }
 }

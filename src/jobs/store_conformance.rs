@@ -223,6 +223,18 @@ pub fn one_claim_wins_a_race(s: &dyn JobStore) {
     assert_eq!(wins, 1);
 }
 
+/// Workers register their budgets; only recently seen ones count.
+pub fn workers_register_their_budgets(s: &dyn JobStore) {
+    assert_eq!(s.largest_worker_budget(LONG).unwrap(), None, "no worker yet");
+    s.register_worker("a", 100).unwrap();
+    s.register_worker("b", 300).unwrap();
+    s.register_worker("a", 200).unwrap();
+    assert_eq!(s.largest_worker_budget(LONG).unwrap(), Some(300));
+    std::thread::sleep(Duration::from_millis(30));
+    s.register_worker("a", 200).unwrap();
+    assert_eq!(s.largest_worker_budget(Duration::from_millis(20)).unwrap(), Some(200), "b was not seen lately");
+}
+
 /// Every conformance test, each on a fresh store from `fresh`.
 pub fn run_all(fresh: &dyn Fn() -> Box<dyn JobStore>) {
     lifecycle_and_queue_limit(&*fresh());
@@ -234,4 +246,5 @@ pub fn run_all(fresh: &dyn Fn() -> Box<dyn JobStore>) {
     the_queue_head_skips_jobs_above_the_budget(&*fresh());
     tenants_scope_lists_counts_and_stored_bytes(&*fresh());
     one_claim_wins_a_race(&*fresh());
+    workers_register_their_budgets(&*fresh());
 }

@@ -165,15 +165,25 @@ async fn restarting_every_process_at_once_loses_no_job_and_finishes_each_once(c:
 
 async fn a_worker_with_a_small_budget_leaves_a_large_job_to_a_larger_one(c: Cluster) {
     let api = c.api(&[]);
-    let small = c.worker(&["--memory-budget", "1KiB"]);
     let id = c.submit(&api).await;
+    let alone = c.job(&api, &id).await;
+    let msg = alone["status_message"].as_str().unwrap_or_default();
+    assert!(msg.contains("no worker has been seen"), "{alone:#}");
+    let small = c.worker(&["--memory-budget", "1KiB"]);
     let estimate = c.job(&api, &id).await["memory_estimate_bytes"].as_u64().unwrap();
     assert!(estimate > 1024, "the test job must not fit 1 KiB (estimate {estimate})");
     tokio::time::sleep(Duration::from_secs(2)).await;
-    assert_eq!(c.job(&api, &id).await["state"], "queued", "the small worker must leave it");
+    let waiting = c.job(&api, &id).await;
+    assert_eq!(waiting["state"], "queued", "the small worker must leave it");
+    let msg = waiting["status_message"].as_str().unwrap_or_default();
+    assert!(
+        msg.contains("exceeds the memory budget of every live worker") && msg.contains("1024 bytes"),
+        "{waiting:#}"
+    );
     let large = c.worker(&["--memory-budget", "4GiB"]);
     let j = c.wait_for(&api, &id, is_final).await;
     assert_eq!(j["state"], "succeeded", "{j:#}");
+    assert!(j["status_message"].is_null(), "{j:#}");
     assert_eq!(small.metric(&c.client, "meshatlas_claims_total").await, 0.0);
     assert_eq!(large.metric(&c.client, "meshatlas_claims_total").await, 1.0);
 }
