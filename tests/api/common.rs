@@ -109,12 +109,14 @@ pub fn matrix_database() -> Option<String> {
 /// test bucket (`MESHATLAS_TEST_S3_BUCKET`, endpoint and keys from the
 /// `AWS_*` variables `.ci/services.sh` exports).
 pub fn matrix_bucket() -> meshatlas::jobs::artifact_store::ArtifactLocation {
+    meshatlas::jobs::artifact_store::ArtifactLocation::parse(&matrix_bucket_url()).unwrap()
+}
+
+/// [`matrix_bucket`] as an `--artifacts` URL.
+pub fn matrix_bucket_url() -> String {
     let bucket =
         std::env::var("MESHATLAS_TEST_S3_BUCKET").expect("MESHATLAS_TEST_MATRIX=postgres needs the S3 test bucket");
-    meshatlas::jobs::artifact_store::ArtifactLocation::S3 {
-        bucket,
-        prefix: format!("t_{}", uuid::Uuid::new_v4().simple()),
-    }
+    format!("s3://{bucket}/t_{}", uuid::Uuid::new_v4().simple())
 }
 
 /// Checks a problem+json response: status, type kind, request id in body

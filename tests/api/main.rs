@@ -10,5 +10,7 @@ mod fixtures;
 mod formats;
 mod jobs;
 mod restart;
+#[path = "../common/mod.rs"]
+mod shared;
 mod spec;
 mod stages;

@@ -2,7 +2,6 @@
 //! a job interrupted `--max-attempts` times is failed with a clear reason;
 //! SIGTERM puts the running job back in the queue without counting an attempt.
 
-use std::io::{BufRead, BufReader};
 use std::path::Path;
 use std::process::{Child, Command, Stdio};
 use std::time::{Duration, Instant};
@@ -20,39 +19,28 @@ struct Proc {
 impl Proc {
     fn start(data_dir: &Path, extra: &[&str]) -> Proc {
         // One database per data directory in the PostgreSQL matrix, kept in it across restarts.
-        let store_file = data_dir.join("matrix-store-url");
-        let store = std::fs::read_to_string(&store_file).ok().or_else(|| {
-            let url = crate::common::matrix_database()?;
-            let meshatlas::jobs::artifact_store::ArtifactLocation::S3 { bucket, prefix } =
-                crate::common::matrix_bucket()
-            else {
-                unreachable!()
-            };
-            std::fs::write(&store_file, format!("{url}\ns3://{bucket}/{prefix}")).unwrap();
-            std::fs::read_to_string(&store_file).ok()
-        });
-        let (store, artifacts) = match store.as_deref().and_then(|s| s.split_once('\n')) {
-            Some((s, a)) => (Some(s.to_string()), Some(a.to_string())),
+        let matrix_file = data_dir.join("matrix-store");
+        if !matrix_file.exists()
+            && let Some(url) = crate::common::matrix_database()
+        {
+            std::fs::write(&matrix_file, format!("{url}\n{}", crate::common::matrix_bucket_url())).unwrap();
+        }
+        let matrix = std::fs::read_to_string(&matrix_file).ok();
+        let (store, artifacts) = match matrix.as_deref().and_then(|s| s.split_once('\n')) {
+            Some((s, a)) => (Some(s), Some(a)),
             None => (None, None),
         };
-        let mut child = Command::new(env!("CARGO_BIN_EXE_meshatlas"))
-            .args(["serve", "--addr", "127.0.0.1:0", "--workers", "1"])
+        let mut cmd = Command::new(env!("CARGO_BIN_EXE_meshatlas"));
+        cmd.args(["serve", "--addr", "127.0.0.1:0", "--workers", "1"])
             .arg("--data-dir")
             .arg(data_dir)
-            .args(store.iter().flat_map(|url| ["--store", url.as_str()]))
-            .args(artifacts.iter().flat_map(|url| ["--artifacts", url.as_str()]))
+            .args(store.iter().flat_map(|url| ["--store", url]))
+            .args(artifacts.iter().flat_map(|url| ["--artifacts", url]))
             .args(extra)
             .env("MESHATLAS_LOG", "warn")
-            .stdout(Stdio::piped())
-            .stderr(Stdio::inherit())
-            .spawn()
-            .expect("start meshatlas serve");
-        let stdout = child.stdout.take().unwrap();
-        let mut line = String::new();
-        BufReader::new(stdout).read_line(&mut line).expect("read the listening line");
-        let addr =
-            line.trim().strip_prefix("listening on ").unwrap_or_else(|| panic!("unexpected first line {line:?}"));
-        Proc { child, base: format!("http://{addr}") }
+            .stderr(Stdio::inherit());
+        let (child, base) = crate::shared::spawn_listening(cmd);
+        Proc { child, base }
     }
 
     fn kill9(mut self) {

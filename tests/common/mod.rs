@@ -31,6 +31,19 @@ pub fn python(script: &str, args: &[&str]) -> Value {
     serde_json::from_str(last).unwrap_or_else(|e| panic!("bad JSON from python ({e}): {last}"))
 }
 
+/// Spawns `cmd` with stdout piped and reads its first line, which the
+/// server prints as `listening on ADDR`; returns the child and `http://ADDR`.
+pub fn spawn_listening(mut cmd: Command) -> (std::process::Child, String) {
+    use std::io::BufRead;
+    let mut child = cmd.stdout(std::process::Stdio::piped()).spawn().expect("start meshatlas");
+    let stdout = child.stdout.take().expect("piped stdout");
+    let mut line = String::new();
+    std::io::BufReader::new(stdout).read_line(&mut line).expect("read the listening line");
+    let addr = line.trim().strip_prefix("listening on ").unwrap_or_else(|| panic!("unexpected first line {line:?}"));
+    let base = format!("http://{addr}");
+    (child, base)
+}
+
 /// A fresh directory `<target tmp>/<suite>/<name>` for one test's files.
 pub fn scratch(suite: &str, name: &str) -> PathBuf {
     let dir = Path::new(env!("CARGO_TARGET_TMPDIR")).join(suite).join(name);

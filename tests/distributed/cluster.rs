@@ -5,7 +5,6 @@
 //! ([`Artifacts::S3`], the SeaweedFS `.ci/run` starts), each process then
 //! with a data directory of its own.
 
-use std::io::{BufRead, BufReader};
 use std::path::{Path, PathBuf};
 use std::process::{Child, Command, Stdio};
 use std::time::{Duration, Instant};
@@ -37,24 +36,17 @@ pub struct Proc {
 
 impl Proc {
     fn spawn(role: &[&str], store: &str, artifacts: &str, data: &Path, extra: &[&str]) -> Proc {
-        let mut child = Command::new(env!("CARGO_BIN_EXE_meshatlas"))
-            .args(role)
+        let mut cmd = Command::new(env!("CARGO_BIN_EXE_meshatlas"));
+        cmd.args(role)
             .args(["--addr", "127.0.0.1:0", "--store", store, "--lease-secs", LEASE, "--heartbeat-secs", HEARTBEAT])
             .args(["--artifacts", artifacts])
             .arg("--data-dir")
             .arg(data)
             .args(extra)
             .env("MESHATLAS_LOG", "warn")
-            .stdout(Stdio::piped())
-            .stderr(Stdio::inherit())
-            .spawn()
-            .expect("start meshatlas");
-        let stdout = child.stdout.take().unwrap();
-        let mut line = String::new();
-        BufReader::new(stdout).read_line(&mut line).expect("read the listening line");
-        let addr =
-            line.trim().strip_prefix("listening on ").unwrap_or_else(|| panic!("unexpected first line {line:?}"));
-        Proc { child, base: format!("http://{addr}") }
+            .stderr(Stdio::inherit());
+        let (child, base) = crate::shared::spawn_listening(cmd);
+        Proc { child, base }
     }
 
     /// Sends `signal` (e.g. `-STOP`) to the process.

@@ -8,6 +8,8 @@
 mod fixtures;
 
 mod cluster;
+#[path = "../common/mod.rs"]
+mod shared;
 
 use std::time::{Duration, Instant};
 
