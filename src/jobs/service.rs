@@ -318,13 +318,12 @@ impl JobService {
                 }
                 Ok(None) => {
                     cleanup(inner);
+                    forget_upload(inner, id);
                     Err(JobsError::QueueFull { max_queued: inner.config.max_queued })
                 }
                 Err(e) => {
                     cleanup(inner);
-                    if let Err(e) = inner.artifacts.delete_prefix(&JobsConfig::job_key(id), None) {
-                        warn!(job = %id, error = %e, "cannot remove the upload of a refused job from the artifact store");
-                    }
+                    forget_upload(inner, id);
                     Err(e.into())
                 }
             }
@@ -631,6 +630,14 @@ fn annotate_queued(inner: &Inner, recs: &mut [JobRecord]) -> Result<(), JobsErro
         };
     }
     Ok(())
+}
+
+/// Removes from the artifact store the upload of a submission that was
+/// refused after it was stored (no row refers to it).
+fn forget_upload(inner: &Inner, id: JobId) {
+    if let Err(e) = inner.artifacts.delete_prefix(&JobsConfig::job_key(id), None) {
+        warn!(job = %id, error = %e, "cannot remove the upload of a refused job from the artifact store");
+    }
 }
 
 /// Where a job that was asked to stop was running.
