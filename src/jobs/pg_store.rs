@@ -503,20 +503,24 @@ impl JobStore for PgStore {
             let owner: Option<String> = r.try_get(1).map_err(pg)?;
             let expired: bool = r.try_get(2).map_err(pg)?;
             if expired || owner.as_deref().is_none_or(is_dead) {
-                gone.push((id, owner));
+                // A dead owner's lease may still run: then its expiry is not re-checked.
+                gone.push((id, owner, !expired));
             }
         }
         let mut rec = Recovery::default();
-        for (id, owner) in gone {
+        for (id, owner, dead) in gone {
             let job = parse_id(id.clone())?;
             let reaped = self.run(move |pool| async move {
                 let mut client = pool.get().await.map_err(pg)?;
                 let tx = client.transaction().await.map_err(pg)?;
                 let row = tx
                     .query_opt(
-                        "SELECT attempts, crashes FROM jobs WHERE id = $1 AND state = 'running' \
-                         AND lease_owner IS NOT DISTINCT FROM $2 FOR UPDATE SKIP LOCKED",
-                        &[&id, &owner],
+                        &format!(
+                            "SELECT attempts, crashes FROM jobs WHERE id = $1 AND state = 'running' \
+                             AND lease_owner IS NOT DISTINCT FROM $2 \
+                             AND ($3 OR coalesce(lease_until_ms < {NOW_MS}, true)) FOR UPDATE SKIP LOCKED"
+                        ),
+                        &[&id, &owner, &dead],
                     )
                     .await
                     .map_err(pg)?;
