@@ -366,7 +366,8 @@ fn serve(args: ServeArgs) -> Result<(), String> {
 /// `meshatlas worker`: runs jobs of the shared store and serves /healthz
 /// and /metrics until SIGTERM, then puts its running jobs back in the queue.
 fn worker(args: WorkerArgs) -> Result<(), String> {
-    let config = jobs_config(&args.jobs, true)?;
+    // A worker serves no downloads: its copies of a job's files are scratch.
+    let config = JobsConfig { keep_local_copies: false, ..jobs_config(&args.jobs, true)? };
     tracing::info!(memory_budget = config.memory_budget, store = %config.store.redacted(), "worker");
     let executor = executor(&args.jobs);
     runtime()?.block_on(async move {

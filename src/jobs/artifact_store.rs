@@ -12,8 +12,10 @@
 //!   lacks it and uploads every artifact of an attempt (under the attempt's
 //!   key, `jobs/<id>/out/<attempt>/`) before it records the job finished, so
 //!   a record never lists an artifact the bucket lacks, and a late attempt
-//!   cannot overwrite the winner's objects; an API fetches an artifact into
-//!   its data directory on its first download and serves the file.
+//!   cannot overwrite the winner's objects (a `worker` then drops its copy;
+//!   a `serve` that runs jobs keeps it, since it may be serving it); an API
+//!   fetches an artifact into its data directory on its first download and
+//!   serves the file.
 //!
 //! Keys are the paths relative to the data directory (`jobs/<id>/…`), so
 //! a file and its object have the same name. Transfers stream between file

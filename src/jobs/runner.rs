@@ -95,6 +95,10 @@ pub struct JobsConfig {
     pub poll_interval: Duration,
     /// Where uploads and artifacts are kept for good. Default: the data directory.
     pub artifacts: ArtifactLocation,
+    /// With an S3 artifact store: whether a job's local files stay after it
+    /// ends (a process that also serves downloads keeps them, so it does not
+    /// remove a file it may be serving; a `worker` drops them). Default true.
+    pub keep_local_copies: bool,
 }
 
 impl JobsConfig {
@@ -120,6 +124,7 @@ impl JobsConfig {
             heartbeat: Duration::from_secs(3),
             poll_interval: Duration::from_millis(100),
             artifacts: ArtifactLocation::Local,
+            keep_local_copies: true,
         }
     }
 
@@ -590,8 +595,8 @@ fn run_job(inner: &Arc<Inner>, rec: JobRecord, job: &Arc<RunningJob>) {
     if let Some(state) = final_state {
         info!(state = state.as_str(), seconds = started.elapsed().as_secs_f64(), "job finished");
     }
-    if !inner.artifacts.is_local() {
-        // The bucket holds what was recorded; this machine's copy was scratch.
+    if !inner.artifacts.is_local() && !inner.config.keep_local_copies {
+        // The bucket holds what was recorded; this worker's copy was scratch.
         remove_job_dir(&inner.config, rec.id);
     }
     inner.running().remove(&rec.id);
