@@ -57,20 +57,11 @@ impl Drop for Proc {
     }
 }
 
-/// An 80-triangle icosphere as ASCII STL.
+/// An 80-triangle icosphere as binary STL (the library's writer).
 fn small_stl() -> Vec<u8> {
-    let m = meshatlas::mesh::fixtures::icosphere(1);
-    let mut s = String::from("solid b\n");
-    for t in &m.triangles {
-        s.push_str("facet normal 0 0 0\nouter loop\n");
-        for v in t {
-            let p = m.positions[v.idx()];
-            s.push_str(&format!("vertex {} {} {}\n", p.x, p.y, p.z));
-        }
-        s.push_str("endloop\nendfacet\n");
-    }
-    s.push_str("endsolid b\n");
-    s.into_bytes()
+    let mut out = Vec::new();
+    meshatlas::io::stl_write::write_stl_binary(&mut out, &meshatlas::mesh::fixtures::icosphere(1)).expect("write STL");
+    out
 }
 
 /// Milliseconds of an RFC 3339 UTC timestamp as the API writes it

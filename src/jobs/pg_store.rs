@@ -686,32 +686,37 @@ pub fn create_test_database(admin_url: &str) -> String {
     }
 }
 
+/// A fresh database on the server at `MESHATLAS_TEST_PG_URL` (`.ci/run`
+/// starts one), for tests; `None` (the test is skipped, with a note) when
+/// the variable is unset outside CI. In CI (`CI` set) an unset variable
+/// fails the test, so CI cannot pass by skipping.
+///
+/// # Panics
+/// In CI without the variable, or when the server refuses.
+#[doc(hidden)]
+pub fn test_database() -> Option<String> {
+    let Ok(admin) = std::env::var("MESHATLAS_TEST_PG_URL") else {
+        assert!(std::env::var_os("CI").is_none(), "CI must set MESHATLAS_TEST_PG_URL (see .ci/run)");
+        eprintln!("MESHATLAS_TEST_PG_URL is unset: PostgreSQL tests skipped (source .ci/services.sh; start_postgres)");
+        return None;
+    };
+    Some(create_test_database(&admin))
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
     use crate::jobs::store_conformance as conformance;
 
-    /// A fresh database on the server at `MESHATLAS_TEST_PG_URL` (CI starts
-    /// one); `None` (the test is skipped, with a note) when the variable is
-    /// unset outside CI. In CI (`CI` set) an unset variable fails the test.
-    pub(crate) fn fresh_database() -> Option<String> {
-        let Ok(admin) = std::env::var("MESHATLAS_TEST_PG_URL") else {
-            assert!(std::env::var_os("CI").is_none(), "CI must set MESHATLAS_TEST_PG_URL (see .ci/run)");
-            eprintln!("MESHATLAS_TEST_PG_URL is unset: PostgreSQL store tests skipped");
-            return None;
-        };
-        Some(crate::jobs::pg_store::create_test_database(&admin))
-    }
-
     #[test]
     fn conforms_to_the_job_store_contract() {
-        let Some(_) = fresh_database() else { return };
-        conformance::run_all(&|| Box::new(PgStore::connect(&fresh_database().unwrap()).unwrap()));
+        let Some(_) = test_database() else { return };
+        conformance::run_all(&|| Box::new(PgStore::connect(&test_database().unwrap()).unwrap()));
     }
 
     #[test]
     fn processes_that_start_at_once_migrate_once() {
-        let Some(url) = fresh_database() else { return };
+        let Some(url) = test_database() else { return };
         let stores: Vec<PgStore> = std::thread::scope(|s| {
             let hs: Vec<_> = (0..4).map(|_| s.spawn(|| PgStore::connect(&url).unwrap())).collect();
             hs.into_iter().map(|h| h.join().unwrap()).collect()
@@ -722,7 +727,7 @@ mod tests {
 
     #[test]
     fn an_insert_wakes_a_listener() {
-        let Some(url) = fresh_database() else { return };
+        let Some(url) = test_database() else { return };
         let s = PgStore::connect(&url).unwrap();
         let (tx, rx) = std::sync::mpsc::channel();
         let tx = std::sync::Mutex::new(tx);

@@ -491,13 +491,10 @@ impl JobService {
                 .find(|a| a.name == name)
                 .cloned()
                 .ok_or(JobsError::ArtifactNotFound { id, name })?;
-            if !inner.artifacts.is_local() {
-                // Fetched into this machine's data directory on first use, then served as a file.
-                let key = format!("{}/{}", JobsConfig::attempt_key(id, rec.attempts), art.name);
-                if !inner.artifacts.fetch(&inner.config.data_dir, &key)? {
-                    return Err(JobsError::Internal(format!("artifact {key} is missing from the artifact store")));
-                }
-                return Ok((inner.config.data_dir.join(key), art));
+            // With S3, fetched into this machine's data directory on first use, then served as a file.
+            let key = format!("{}/{}", JobsConfig::attempt_key(id, rec.attempts), art.name);
+            if !inner.artifacts.is_local() && !inner.artifacts.fetch(&inner.config.data_dir, &key)? {
+                return Err(JobsError::Internal(format!("artifact {key} is missing from the artifact store")));
             }
             Ok((inner.config.artifact_path(id, rec.attempts, &art.name), art))
         })

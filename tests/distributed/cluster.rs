@@ -16,18 +16,6 @@ use serde_json::Value;
 pub const LEASE: &str = "2";
 pub const HEARTBEAT: &str = "0.5";
 
-/// A fresh database on the server of `MESHATLAS_TEST_PG_URL`, or `None`
-/// (test skipped with a note) when it is unset outside CI; in CI an unset
-/// variable fails the test, so CI cannot pass by skipping.
-pub fn database() -> Option<String> {
-    let Ok(admin) = std::env::var("MESHATLAS_TEST_PG_URL") else {
-        assert!(std::env::var_os("CI").is_none(), "CI must set MESHATLAS_TEST_PG_URL (see .ci/run)");
-        eprintln!("MESHATLAS_TEST_PG_URL is unset: distributed tests skipped (source .ci/services.sh; start_postgres)");
-        return None;
-    };
-    Some(meshatlas::jobs::pg_store::create_test_database(&admin))
-}
-
 /// One child process and the base URL it listens on.
 pub struct Proc {
     pub child: Child,
@@ -115,7 +103,7 @@ impl Cluster {
                 format!("s3://{bucket}/t_{}", uuid::Uuid::new_v4().simple())
             }
         };
-        let store = database()?;
+        let store = meshatlas::jobs::pg_store::test_database()?;
         let root = tempfile::tempdir().unwrap();
         Some(Cluster {
             store,
