@@ -18,7 +18,9 @@
 //! 5. [`cleanup`], [`cavity`] and [`smooth`]: valence-2 vertices and 3-3
 //!    diamonds removed; cavities around irregular vertices replaced by
 //!    patterns with fewer of them; smoothing that never lowers a neighbourhood's worst scaled
-//!    Jacobian, every vertex projected back onto the input ([`projection`]).
+//!    Jacobian, every vertex projected back onto the input ([`projection`]);
+//!    [`pillow`]: a quad still inverted gets a layer of quads pillowed
+//!    around it and its region untangled.
 //! 6. [`order2`]: optional 9-node quadrangles, new nodes on the input.
 //! 7. [`quality`] and [`check`]: scaled Jacobians, valences, the valence
 //!    identity and conformity, asserted on every output; [`report`].
@@ -41,6 +43,7 @@ pub mod output;
 pub mod pairing;
 pub mod parity;
 pub mod patch_chart;
+pub mod pillow;
 pub mod projection;
 pub mod quality;
 pub mod recombine;
@@ -129,6 +132,7 @@ pub fn build_quads(
     let cleanup = cleanup::clean_up(&mut mesh, &projector);
     let cavities = cavity::remesh_cavities(&mut mesh, &projector);
     let smoothing = smooth::smooth(&mut mesh, &projector, opts.smoothing_iterations, &progress.sub(0.6, 0.95))?;
+    let pillowing = pillow::pillow_bad_quads(&mut mesh, &projector);
     let t = Instant::now();
     if opts.order == 2 {
         order2::add_high_order_nodes(&mut mesh, &projector);
@@ -151,6 +155,7 @@ pub fn build_quads(
         cleanup,
         cavities,
         smoothing,
+        pillowing,
         high_order_seconds,
         check_seconds,
     });

@@ -166,8 +166,16 @@ impl<'a> SurfaceProjector<'a> {
         if n == 0 {
             return None;
         }
-        match hint.and_then(|h| self.hinted_segment(curve, h)) {
-            Some(s) => Some(self.walk_curve(curve, x, s)),
+        // The walk finds a local minimum; one farther than the hint itself
+        // started in the wrong place (a hint on a large triangle whose curve
+        // vertex is far along the curve), so the whole curve is scanned.
+        let walked = hint.and_then(|h| {
+            let (seg, t) = self.walk_curve(curve, x, self.hinted_segment(curve, h)?);
+            let walked_distance = self.segment_closest(curve, seg, x).1;
+            (walked_distance <= (self.position_of(h) - x).norm() * (1.0 + 1e-9) + 1e-12).then_some((seg, t))
+        });
+        match walked {
+            Some(found) => Some(found),
             None => (0..n)
                 .map(|s| (s, self.segment_closest(curve, s, x)))
                 .min_by(|a, b| a.1.1.total_cmp(&b.1.1))

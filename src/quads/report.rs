@@ -18,6 +18,7 @@ use serde::Serialize;
 
 use super::cavity::CavityStats;
 use super::cleanup::CleanupStats;
+use super::pillow::PillowStats;
 use super::quality::{QuadQuality, sample_stats};
 use super::recombine::RecombineStats;
 use super::smooth::SmoothStats;
@@ -40,6 +41,8 @@ pub struct StepSeconds {
     pub cavities: f64,
     /// Smoothing and projection.
     pub smoothing: f64,
+    /// Pillowing of the quads still inverted after smoothing.
+    pub pillowing: f64,
     /// Order-2 nodes (0 for order 1).
     pub high_order: f64,
     /// Quality measures and checks.
@@ -118,6 +121,8 @@ pub struct QuadsReport {
     pub cavities: CavityStats,
     /// The smoothing step's report.
     pub smoothing: SmoothStats,
+    /// The pillowing step's report (regions repaired after smoothing).
+    pub pillowing: PillowStats,
     /// Wall seconds per step.
     pub seconds: StepSeconds,
 }
@@ -144,6 +149,8 @@ pub struct ReportInputs<'a> {
     pub cavities: CavityStats,
     /// Smoothing.
     pub smoothing: SmoothStats,
+    /// Pillowing.
+    pub pillowing: PillowStats,
     /// Wall seconds of the order-2 nodes (0 for order 1).
     pub high_order_seconds: f64,
     /// Wall seconds of the quality measures and checks.
@@ -171,6 +178,7 @@ impl QuadsReport {
             cleanup: inputs.cleanup.seconds,
             cavities: inputs.cavities.seconds,
             smoothing: inputs.smoothing.seconds,
+            pillowing: inputs.pillowing.seconds,
             high_order: inputs.high_order_seconds,
             check: inputs.check_seconds,
         };
@@ -208,6 +216,7 @@ impl QuadsReport {
             cleanup: inputs.cleanup,
             cavities: inputs.cavities,
             smoothing: inputs.smoothing,
+            pillowing: inputs.pillowing,
             seconds,
         }
     }
@@ -241,6 +250,7 @@ mod tests {
             cleanup: CleanupStats::default(),
             cavities: CavityStats::default(),
             smoothing: SmoothStats::default(),
+            pillowing: PillowStats::default(),
             high_order_seconds: 0.0,
             check_seconds: 0.25,
         })

@@ -1,0 +1,615 @@
+//! Step 5c of the quads stage: quads still inverted or degenerate after
+//! smoothing are repaired by pillowing a small region around them and
+//! untangling its inside (issue 13 §5: no inverted quad on any output).
+//!
+//! Why moving vertices is not enough. The quads that survive smoothing have
+//! too few corners somewhere: a vertex on a straight curve that lies in one
+//! quad only (an ear of three curve points, midpoint-subdivided) has a 180°
+//! corner whatever its neighbours do, and a corner of the boundary whose fan
+//! was squeezed by a fold of the patch triangulation cannot open without a
+//! further quad. Pillowing (Mitchell & Tautges, "Pillowing doublets:
+//! refining a mesh to ensure that faces share at most one edge", 1995)
+//! changes exactly that:
+//!
+//! - A region `R` (quads of one model face) has boundary edges, each used by
+//!   one quad of `R`. Every vertex `w` on that boundary gets a copy `w'`
+//!   inside the face; the quads of `R` are rewritten on the copies, and each
+//!   boundary edge `(a, b)`, oriented as its quad of `R` runs it, gets the
+//!   layer quad `(a, b, b', a')`. Every quad outside `R` is unchanged, every
+//!   edge of `R`'s boundary is still used as before (by the layer quad
+//!   instead of `R`'s), so conformity, the classification on the model
+//!   faces and the valence identity hold by construction; a vertex on the
+//!   boundary of `R` gains one quad (the 180° vertex gets two of about 90°).
+//! - The copies start halfway between their vertex and the mean centre of
+//!   its quads in `R`; then every vertex of `R` and its layer but the
+//!   corners is moved, one at a time, to the candidate point that most
+//!   raises the worst scaled Jacobian of all its quads (then lowers their
+//!   summed shortfall below [`ACCEPTED_SCALED_JACOBIAN`]), until no
+//!   candidate does: for a face vertex its neighbours' mean or a step in
+//!   one of 12 tangent directions at 4 radii, projected onto the face; for
+//!   a curve vertex a step along its curve, between its curve neighbours
+//!   (untangling by maximizing the minimum, the criterion quadqs'
+//!   `smoothThePool` guards).
+//!
+//! The region grows from the cluster of bad quads (joined through shared
+//! vertices, per model face) ring by ring until its worst quad reaches
+//! [`ACCEPTED_SCALED_JACOBIAN`]; failed attempts are undone. The vertices
+//! of pinches (a vertex the boundary of `R` passes twice) get all their
+//! quads of the face into `R`, so each boundary vertex needs one copy. The
+//! step runs in index order on one thread, so the output does not depend
+//! on the thread count. It adds irregular vertices (the region's corners
+//! gain a quad), which the report counts; it exists to turn a failed job
+//! into a valid mesh where earlier steps left a defect.
+
+use std::collections::BTreeMap;
+use std::time::Instant;
+
+use serde::Serialize;
+
+use super::projection::SurfaceProjector;
+use super::quality::is_inverted_or_degenerate;
+use super::smooth::quad_scaled_jacobian;
+use super::surface_mesh::{ModelEntity, QuadMesh};
+use crate::geom::Vec3;
+
+/// A repaired region is accepted when its worst quad reaches this scaled
+/// Jacobian (a margin over 0 that Gmsh's `minSICN` also sees as valid).
+pub const ACCEPTED_SCALED_JACOBIAN: f64 = 0.02;
+
+/// Rings of quads around a cluster tried before it is left as it is.
+const MAX_RINGS: usize = 3;
+
+/// Largest region (quads) pillowed at once.
+const MAX_REGION_QUADS: usize = 400;
+
+/// Rounds over the remaining bad quads (a repair can leave a neighbour's
+/// cluster changed).
+const MAX_ROUNDS: usize = 3;
+
+/// Untangling sweeps over a region's free vertices at most.
+const MAX_SWEEPS: usize = 40;
+
+/// Tangent directions tried per radius.
+const N_DIRECTIONS: usize = 12;
+
+/// Step radii tried, as fractions of the mean edge length at the vertex.
+const RADII: [f64; 4] = [0.4, 0.2, 0.1, 0.05];
+
+/// Where a copy starts: this fraction of the way from its vertex to the
+/// mean centre of the vertex's quads in the region.
+const COPY_FRACTION: f64 = 0.5;
+
+/// What pillowing did (for the report).
+#[derive(Debug, Clone, Default, Serialize)]
+pub struct PillowStats {
+    /// Inverted or degenerate quads when the step started.
+    pub n_bad_before: usize,
+    /// Inverted or degenerate quads when it ended (0 unless a region could
+    /// not be repaired; the check then fails the stage).
+    pub n_bad_after: usize,
+    /// Regions pillowed.
+    pub n_regions: usize,
+    /// Quads the layers added.
+    pub n_quads_added: usize,
+    /// Wall seconds of the step.
+    pub seconds: f64,
+}
+
+/// Pillows and untangles regions around every inverted or degenerate quad
+/// of `mesh` (module documentation); returns what it did.
+pub fn pillow_bad_quads(mesh: &mut QuadMesh, projector: &SurfaceProjector) -> PillowStats {
+    let t = Instant::now();
+    let mut stats = PillowStats { n_bad_before: bad_quads(mesh, projector).len(), ..PillowStats::default() };
+    for _ in 0..MAX_ROUNDS {
+        let bad = bad_quads(mesh, projector);
+        if bad.is_empty() {
+            break;
+        }
+        let mut repaired_any = false;
+        for cluster in clusters(mesh, &bad) {
+            // An earlier repair of this round may have fixed or rewritten it.
+            if !cluster.iter().any(|&q| is_bad(mesh, projector, q)) {
+                continue;
+            }
+            if let Some(added) = repair_cluster(mesh, projector, &cluster) {
+                stats.n_regions += 1;
+                stats.n_quads_added += added;
+                repaired_any = true;
+            }
+        }
+        if !repaired_any {
+            break;
+        }
+    }
+    stats.n_bad_after = bad_quads(mesh, projector).len();
+    stats.seconds = t.elapsed().as_secs_f64();
+    stats
+}
+
+/// Whether quad `q` is inverted or degenerate.
+fn is_bad(mesh: &QuadMesh, projector: &SurfaceProjector, q: u32) -> bool {
+    is_inverted_or_degenerate(quad_scaled_jacobian(&mesh.vertices, projector.surface, &mesh.quads[q as usize]))
+}
+
+/// The inverted or degenerate quads of `mesh`, ascending.
+fn bad_quads(mesh: &QuadMesh, projector: &SurfaceProjector) -> Vec<u32> {
+    (0..mesh.quads.len() as u32).filter(|&q| is_bad(mesh, projector, q)).collect()
+}
+
+/// Per vertex, the quads using it (ascending).
+fn quads_per_vertex(mesh: &QuadMesh) -> Vec<Vec<u32>> {
+    let mut per = vec![Vec::new(); mesh.vertices.len()];
+    for (q, quad) in mesh.quads.iter().enumerate() {
+        for &v in quad {
+            per[v as usize].push(q as u32);
+        }
+    }
+    per
+}
+
+/// The bad quads grouped into clusters: two bad quads of the same model
+/// face sharing a vertex are in one cluster. Each cluster is ascending;
+/// clusters are ordered by their first quad.
+fn clusters(mesh: &QuadMesh, bad: &[u32]) -> Vec<Vec<u32>> {
+    let per_vertex = quads_per_vertex(mesh);
+    let index: BTreeMap<u32, usize> = bad.iter().enumerate().map(|(i, &q)| (q, i)).collect();
+    let mut parent: Vec<usize> = (0..bad.len()).collect();
+    fn root(parent: &mut [usize], mut i: usize) -> usize {
+        while parent[i] != i {
+            parent[i] = parent[parent[i]];
+            i = parent[i];
+        }
+        i
+    }
+    for (i, &q) in bad.iter().enumerate() {
+        for &v in &mesh.quads[q as usize] {
+            for &r in &per_vertex[v as usize] {
+                let Some(&j) = index.get(&r) else { continue };
+                if mesh.model_face_per_quad[r as usize] != mesh.model_face_per_quad[q as usize] {
+                    continue;
+                }
+                let (a, b) = (root(&mut parent, i), root(&mut parent, j));
+                parent[a.max(b)] = a.min(b);
+            }
+        }
+    }
+    let mut groups: BTreeMap<usize, Vec<u32>> = BTreeMap::new();
+    for (i, &q) in bad.iter().enumerate() {
+        groups.entry(root(&mut parent, i)).or_default().push(q);
+    }
+    groups.into_values().collect()
+}
+
+/// Repairs one cluster: pillows regions of 0 to [`MAX_RINGS`] rings around
+/// it until one reaches [`ACCEPTED_SCALED_JACOBIAN`]; failing that, keeps
+/// the best attempt that is valid. Returns the quads added, `None` when no
+/// attempt was kept (the mesh is then as before).
+fn repair_cluster(mesh: &mut QuadMesh, projector: &SurfaceProjector, cluster: &[u32]) -> Option<usize> {
+    let face = mesh.model_face_per_quad[cluster[0] as usize];
+    let mut best: Option<(usize, f64)> = None;
+    for rings in 0..=MAX_RINGS {
+        let Some(region) = region_around(mesh, cluster, face, rings) else { break };
+        let saved = Saved::of(mesh, &region);
+        let worst = pillow_and_untangle(mesh, projector, &region, face);
+        if worst >= ACCEPTED_SCALED_JACOBIAN {
+            return Some(mesh.quads.len() - saved.n_quads);
+        }
+        if !is_inverted_or_degenerate(worst) && best.is_none_or(|(_, w)| worst > w) {
+            best = Some((rings, worst));
+        }
+        saved.restore(mesh);
+    }
+    let (rings, _) = best?;
+    let region = region_around(mesh, cluster, face, rings)?;
+    let n_quads = mesh.quads.len();
+    pillow_and_untangle(mesh, projector, &region, face);
+    Some(mesh.quads.len() - n_quads)
+}
+
+/// The quads of model face `face` within `rings` rings (through shared
+/// vertices) of `cluster`, with the quads of the face at every vertex its
+/// boundary passes more than once; ascending. `None` when it exceeds
+/// [`MAX_REGION_QUADS`].
+fn region_around(mesh: &QuadMesh, cluster: &[u32], face: u32, rings: usize) -> Option<Vec<u32>> {
+    let per_vertex = quads_per_vertex(mesh);
+    let mut region: Vec<u32> = cluster.to_vec();
+    let of_face = |q: &u32| mesh.model_face_per_quad[*q as usize] == face;
+    let grow = |region: &[u32], at: &[u32]| -> Vec<u32> {
+        let mut out: Vec<u32> = region.to_vec();
+        for &v in at {
+            out.extend(per_vertex[v as usize].iter().filter(|q| of_face(q)));
+        }
+        out.sort_unstable();
+        out.dedup();
+        out
+    };
+    for _ in 0..rings {
+        let vertices: Vec<u32> = region.iter().flat_map(|&q| mesh.quads[q as usize]).collect();
+        region = grow(&region, &vertices);
+    }
+    for _ in 0..8 {
+        let pinches = pinched_vertices(mesh, &region);
+        if pinches.is_empty() {
+            break;
+        }
+        region = grow(&region, &pinches);
+    }
+    (region.len() <= MAX_REGION_QUADS && pinched_vertices(mesh, &region).is_empty()).then_some(region)
+}
+
+/// Edges used by exactly one quad of `region`, each as its quad runs it
+/// (`[a, b]`), in the order of the region's quads.
+fn boundary_edges(mesh: &QuadMesh, region: &[u32]) -> Vec<[u32; 2]> {
+    let mut uses: BTreeMap<[u32; 2], u32> = BTreeMap::new();
+    for &q in region {
+        let quad = mesh.quads[q as usize];
+        for k in 0..4 {
+            let (a, b) = (quad[k], quad[(k + 1) % 4]);
+            *uses.entry([a.min(b), a.max(b)]).or_default() += 1;
+        }
+    }
+    let mut out = Vec::new();
+    for &q in region {
+        let quad = mesh.quads[q as usize];
+        for k in 0..4 {
+            let (a, b) = (quad[k], quad[(k + 1) % 4]);
+            if uses[&[a.min(b), a.max(b)]] == 1 {
+                out.push([a, b]);
+            }
+        }
+    }
+    out
+}
+
+/// Vertices on more than two boundary edges of `region` (ascending).
+fn pinched_vertices(mesh: &QuadMesh, region: &[u32]) -> Vec<u32> {
+    let mut count: BTreeMap<u32, usize> = BTreeMap::new();
+    for [a, b] in boundary_edges(mesh, region) {
+        *count.entry(a).or_default() += 1;
+        *count.entry(b).or_default() += 1;
+    }
+    count.into_iter().filter(|&(_, n)| n > 2).map(|(v, _)| v).collect()
+}
+
+/// What an attempt changes, to undo it.
+struct Saved {
+    n_quads: usize,
+    n_vertices: usize,
+    quads: Vec<(u32, [u32; 4])>,
+    positions: Vec<(u32, Vec3, super::surface_mesh::SurfacePoint)>,
+}
+
+impl Saved {
+    /// The state of `mesh` that pillowing `region` may change.
+    fn of(mesh: &QuadMesh, region: &[u32]) -> Self {
+        let quads: Vec<(u32, [u32; 4])> = region.iter().map(|&q| (q, mesh.quads[q as usize])).collect();
+        let mut vertices: Vec<u32> = quads.iter().flat_map(|(_, quad)| *quad).collect();
+        vertices.sort_unstable();
+        vertices.dedup();
+        let positions = vertices
+            .into_iter()
+            .map(|v| (v, mesh.vertices.positions[v as usize], mesh.vertices.on_surface[v as usize]))
+            .collect();
+        Saved { n_quads: mesh.quads.len(), n_vertices: mesh.vertices.len(), quads, positions }
+    }
+
+    /// Puts `mesh` back as it was.
+    fn restore(self, mesh: &mut QuadMesh) {
+        mesh.quads.truncate(self.n_quads);
+        mesh.model_face_per_quad.truncate(self.n_quads);
+        mesh.vertices.truncate(self.n_vertices);
+        for (q, quad) in self.quads {
+            mesh.quads[q as usize] = quad;
+        }
+        for (v, x, p) in self.positions {
+            mesh.vertices.positions[v as usize] = x;
+            mesh.vertices.on_surface[v as usize] = p;
+        }
+    }
+}
+
+/// Pillows `region` (quads of model face `face`) and untangles its inside;
+/// returns the worst scaled Jacobian of the region's quads and its layer.
+fn pillow_and_untangle(mesh: &mut QuadMesh, projector: &SurfaceProjector, region: &[u32], face: u32) -> f64 {
+    let boundary = boundary_edges(mesh, region);
+    let mut copy_of: BTreeMap<u32, u32> = BTreeMap::new();
+    let mut centres: BTreeMap<u32, (Vec3, usize)> = BTreeMap::new();
+    let pos = |mesh: &QuadMesh, v: u32| mesh.vertices.positions[v as usize];
+    for &q in region {
+        let quad = mesh.quads[q as usize];
+        let c = quad.iter().map(|&v| pos(mesh, v)).sum::<Vec3>() / 4.0;
+        for v in quad {
+            let e = centres.entry(v).or_insert((Vec3::zeros(), 0));
+            e.0 += c;
+            e.1 += 1;
+        }
+    }
+    for &[a, _] in &boundary {
+        if copy_of.contains_key(&a) {
+            continue;
+        }
+        let (sum, n) = centres[&a];
+        let x = pos(mesh, a) + (sum / n as f64 - pos(mesh, a)) * COPY_FRACTION;
+        let Some(p) = projector.project_to_face(face, &x) else { continue };
+        let id = mesh.vertices.push(p.position, p.on_surface, ModelEntity::Face(face));
+        copy_of.insert(a, id);
+    }
+    let copy = |v: u32| copy_of.get(&v).copied().unwrap_or(v);
+    for &q in region {
+        mesh.quads[q as usize] = mesh.quads[q as usize].map(copy);
+    }
+    let first_layer = mesh.quads.len();
+    for &[a, b] in &boundary {
+        mesh.quads.push([a, b, copy(b), copy(a)]);
+        mesh.model_face_per_quad.push(face);
+    }
+    let touched: Vec<u32> = region.iter().copied().chain(first_layer as u32..mesh.quads.len() as u32).collect();
+    untangle(mesh, projector, &touched)
+}
+
+/// Moves the vertices of `quads` (all but corners; a curve vertex along
+/// its curve), each to the candidate that most lowers the shortfall of its
+/// quads below [`ACCEPTED_SCALED_JACOBIAN`], until a sweep lowers none;
+/// returns the worst scaled Jacobian of every quad at those vertices.
+fn untangle(mesh: &mut QuadMesh, projector: &SurfaceProjector, quads: &[u32]) -> f64 {
+    let all = quads_per_vertex(mesh);
+    let mut free: Vec<u32> = quads.iter().flat_map(|&q| mesh.quads[q as usize]).collect();
+    free.sort_unstable();
+    free.dedup();
+    free.retain(|&v| !matches!(mesh.vertices.entity[v as usize], ModelEntity::Corner(_)));
+    let curve_neighbours = curve_neighbours(mesh, &free);
+    for _ in 0..MAX_SWEEPS {
+        let mut moved = false;
+        for (i, &v) in free.iter().enumerate() {
+            moved |= move_to_best_candidate(mesh, projector, v, &all[v as usize], &curve_neighbours[i]);
+        }
+        if !moved {
+            break;
+        }
+    }
+    let mut around: Vec<u32> =
+        free.iter().flat_map(|&v| all[v as usize].iter().copied()).chain(quads.iter().copied()).collect();
+    around.sort_unstable();
+    around.dedup();
+    worst_of(mesh, projector, &around)
+}
+
+/// For each vertex of `vertices` on a curve, its neighbours along curve
+/// edges of that curve (empty for other vertices).
+fn curve_neighbours(mesh: &QuadMesh, vertices: &[u32]) -> Vec<Vec<u32>> {
+    vertices
+        .iter()
+        .map(|&v| {
+            let ModelEntity::Curve(c) = mesh.vertices.entity[v as usize] else { return Vec::new() };
+            mesh.curve_edges
+                .iter()
+                .filter(|&&(d, [a, b])| d == c && (a == v || b == v))
+                .map(|&(_, [a, b])| if a == v { b } else { a })
+                .collect()
+        })
+        .collect()
+}
+
+/// Worst scaled Jacobian of `quads` of `mesh`.
+fn worst_of(mesh: &QuadMesh, projector: &SurfaceProjector, quads: &[u32]) -> f64 {
+    quads
+        .iter()
+        .map(|&q| quad_scaled_jacobian(&mesh.vertices, projector.surface, &mesh.quads[q as usize]))
+        .fold(f64::INFINITY, f64::min)
+}
+
+/// How far `quads` fall short: the sum of their shortfalls below
+/// [`ACCEPTED_SCALED_JACOBIAN`] and their worst scaled Jacobian.
+fn shortfall(mesh: &QuadMesh, projector: &SurfaceProjector, quads: &[u32]) -> (f64, f64) {
+    let sj = quads.iter().map(|&q| quad_scaled_jacobian(&mesh.vertices, projector.surface, &mesh.quads[q as usize]));
+    sj.fold((0.0, f64::INFINITY), |(sum, worst), j| (sum + (ACCEPTED_SCALED_JACOBIAN - j).max(0.0), worst.min(j)))
+}
+
+/// Whether shortfall `a` is better than `b`: a larger worst, or the same
+/// worst and a smaller sum (so a move that mends one quad counts while
+/// another stays the worst). Worst first: on cow it left 39 bad quads where
+/// the sum first left 47 (`docs/decisions.md`).
+fn is_better(a: (f64, f64), b: (f64, f64)) -> bool {
+    a.1 > b.1 + 1e-9 || (a.1 >= b.1 - 1e-9 && a.0 < b.0 - 1e-12)
+}
+
+/// Candidate positions of vertex `v`: for a face vertex its neighbours'
+/// mean (full and half step) and steps in [`N_DIRECTIONS`] tangent
+/// directions at each of [`RADII`]; for a curve vertex steps along its
+/// curve at each of [`RADII`] both ways, kept strictly between its two
+/// curve neighbours. Each is projected onto the vertex's entity; a face
+/// candidate whose projection lands farther from it than half its step is
+/// left out (it fell onto another sheet of the face).
+fn candidates(
+    mesh: &QuadMesh,
+    projector: &SurfaceProjector,
+    v: u32,
+    quads: &[u32],
+    curve_neighbours: &[u32],
+) -> Vec<super::projection::Projection> {
+    let verts = &mesh.vertices;
+    let x = verts.positions[v as usize];
+    let mut neighbours: Vec<u32> = Vec::new();
+    for &q in quads {
+        let quad = mesh.quads[q as usize];
+        let k = quad.iter().position(|&w| w == v).unwrap_or(0);
+        neighbours.extend([quad[(k + 1) % 4], quad[(k + 3) % 4]]);
+    }
+    neighbours.sort_unstable();
+    neighbours.dedup();
+    let positions: Vec<Vec3> = neighbours.iter().map(|&w| verts.positions[w as usize]).collect();
+    let scale = positions.iter().map(|p| (p - x).norm()).sum::<f64>() / positions.len().max(1) as f64;
+    if scale <= 0.0 {
+        return Vec::new();
+    }
+    match verts.entity[v as usize] {
+        ModelEntity::Corner(_) => Vec::new(),
+        ModelEntity::Curve(c) => {
+            let arc = |w: u32| {
+                projector.curve_arc_length(c, &verts.positions[w as usize], Some(&verts.on_surface[w as usize]))
+            };
+            let (Some(s), [a, b]) = (arc(v), curve_neighbours) else { return Vec::new() };
+            let (Some(sa), Some(sb)) = (arc(*a), arc(*b)) else { return Vec::new() };
+            let (lo, hi) = (sa.min(sb), sa.max(sb));
+            // A curve wrapping through its start between the neighbours: not moved.
+            if !(lo < s && s < hi) || hi - lo > 0.5 * projector.curve_length(c) {
+                return Vec::new();
+            }
+            RADII
+                .iter()
+                .flat_map(|r| [s + r * scale, s - r * scale])
+                .filter(|t| lo < *t && *t < hi)
+                .filter_map(|t| projector.curve_point_at(c, t))
+                .collect()
+        }
+        ModelEntity::Face(face) => {
+            let n = projector.normal_at(&verts.on_surface[v as usize]);
+            let t1 = tangent(&n);
+            let t2 = n.cross(&t1);
+            let to_mean = positions.iter().sum::<Vec3>() / positions.len() as f64 - x;
+            let to_mean = to_mean - n * to_mean.dot(&n);
+            let mut steps: Vec<Vec3> = vec![to_mean, to_mean * 0.5];
+            for r in RADII {
+                for k in 0..N_DIRECTIONS {
+                    let a = std::f64::consts::TAU * k as f64 / N_DIRECTIONS as f64;
+                    steps.push((t1 * a.cos() + t2 * a.sin()) * (r * scale));
+                }
+            }
+            steps
+                .into_iter()
+                .filter(|d| d.norm() > 1e-6 * scale)
+                .filter_map(|d| {
+                    let p = projector.project_to_face(face, &(x + d))?;
+                    ((p.position - (x + d)).norm() <= 0.5 * d.norm()).then_some(p)
+                })
+                .collect()
+        }
+    }
+}
+
+/// Moves vertex `v` (whose quads are `quads`) to the best of its
+/// [`candidates`] when that is better by [`is_better`]; returns whether it
+/// moved.
+fn move_to_best_candidate(
+    mesh: &mut QuadMesh,
+    projector: &SurfaceProjector,
+    v: u32,
+    quads: &[u32],
+    curve_neighbours: &[u32],
+) -> bool {
+    let current = shortfall(mesh, projector, quads);
+    if current.0 == 0.0 {
+        return false;
+    }
+    let old = (mesh.vertices.positions[v as usize], mesh.vertices.on_surface[v as usize]);
+    let mut best = (current, None);
+    for p in candidates(mesh, projector, v, quads, curve_neighbours) {
+        mesh.vertices.positions[v as usize] = p.position;
+        mesh.vertices.on_surface[v as usize] = p.on_surface;
+        let s = shortfall(mesh, projector, quads);
+        if is_better(s, best.0) {
+            best = (s, Some(p));
+        }
+    }
+    match best.1 {
+        Some(p) => {
+            mesh.vertices.positions[v as usize] = p.position;
+            mesh.vertices.on_surface[v as usize] = p.on_surface;
+            true
+        }
+        None => {
+            (mesh.vertices.positions[v as usize], mesh.vertices.on_surface[v as usize]) = old;
+            false
+        }
+    }
+}
+
+/// A unit vector perpendicular to the unit vector `n`.
+fn tangent(n: &Vec3) -> Vec3 {
+    let axis = if n.x.abs() < 0.9 { Vec3::x() } else { Vec3::y() };
+    n.cross(&axis).normalize()
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::mesh::fixtures;
+    use crate::quads::check::check_quad_mesh;
+    use crate::quads::cleanup::tests::square_grid;
+    use crate::quads::quality::quad_quality;
+    use crate::quads::smooth::project_all;
+    use crate::quads::smooth::tests::{Input, classify, finish};
+
+    /// The unit square as three quads, the first `[a, v, b, c]` with `v`
+    /// the middle of the bottom side: a 180° corner, the shape an ear of
+    /// three curve points leaves after subdivision.
+    fn square_with_a_flat_corner(input: &Input) -> QuadMesh {
+        let proj = input.projector();
+        let points = [
+            Vec3::new(0.0, 0.0, 0.0),
+            Vec3::new(0.5, 0.0, 0.0),
+            Vec3::new(1.0, 0.0, 0.0),
+            Vec3::new(0.5, 0.5, 0.0),
+            Vec3::new(1.0, 1.0, 0.0),
+            Vec3::new(0.5, 1.0, 0.0),
+            Vec3::new(0.0, 1.0, 0.0),
+        ];
+        let mut mesh = QuadMesh::default();
+        let rough = crate::quads::SurfacePoint { face: crate::mesh::FaceId(0), bary: [1.0, 0.0, 0.0] };
+        for x in points {
+            let entity = classify(input, &proj, &x);
+            mesh.vertices.push(x, rough, entity);
+        }
+        mesh.quads = vec![[0, 1, 2, 3], [3, 2, 4, 5], [0, 3, 5, 6]];
+        finish(input, &proj, &mut mesh);
+        project_all(&mut mesh, &proj);
+        mesh
+    }
+
+    #[test]
+    fn a_flat_corner_on_the_boundary_is_pillowed_into_a_valid_mesh() {
+        let input = Input::new(fixtures::square(4));
+        let proj = input.projector();
+        let mut mesh = square_with_a_flat_corner(&input);
+        assert_eq!(bad_quads(&mesh, &proj), vec![0]);
+        let stats = pillow_bad_quads(&mut mesh, &proj);
+        assert_eq!((stats.n_bad_before, stats.n_bad_after, stats.n_regions), (1, 0, 1));
+        let quality = quad_quality(&mesh, &input.surface);
+        let worst = quality.scaled_jacobian.iter().copied().fold(f64::INFINITY, f64::min);
+        assert!(worst >= ACCEPTED_SCALED_JACOBIAN, "worst scaled Jacobian {worst}");
+        // The middle of the bottom side now has two quads, so three edges.
+        assert_eq!(quality.valence[1], 3);
+        check_quad_mesh(&mesh, &quality, &input.surface, &input.topo, &input.model).unwrap();
+    }
+
+    #[test]
+    fn an_inverted_inside_vertex_is_repaired_and_the_mesh_passes_its_checks() {
+        let input = Input::new(fixtures::square(8));
+        let proj = input.projector();
+        let mut mesh = square_grid(&input, 6);
+        project_all(&mut mesh, &proj);
+        // Vertex (2, 2) pulled past (3, 3): four quads inverted or folded.
+        let v = 2 * 7 + 2;
+        let x = Vec3::new(0.62, 0.62, 0.0);
+        let p = proj.project_to_face(0, &x).unwrap();
+        mesh.vertices.positions[v] = p.position;
+        mesh.vertices.on_surface[v] = p.on_surface;
+        assert!(!bad_quads(&mesh, &proj).is_empty());
+        let stats = pillow_bad_quads(&mut mesh, &proj);
+        assert_eq!(stats.n_bad_after, 0);
+        let quality = quad_quality(&mesh, &input.surface);
+        check_quad_mesh(&mesh, &quality, &input.surface, &input.topo, &input.model).unwrap();
+    }
+
+    #[test]
+    fn a_valid_mesh_is_left_as_it_is() {
+        let input = Input::new(fixtures::square(4));
+        let proj = input.projector();
+        let mut mesh = square_grid(&input, 4);
+        project_all(&mut mesh, &proj);
+        let before = (mesh.quads.clone(), mesh.vertices.positions.clone());
+        let stats = pillow_bad_quads(&mut mesh, &proj);
+        assert_eq!((stats.n_bad_before, stats.n_regions), (0, 0));
+        assert_eq!((mesh.quads.clone(), mesh.vertices.positions.clone()), before);
+    }
+}
