@@ -6,8 +6,9 @@
 //! model face has an even number of boundary segments. Points are placed at
 //! equal 3D arc length inside each piece of the curve; pieces end at the
 //! atlas corners on the curve (where a seam meets it: that vertex must exist
-//! on both patches' boundaries) and at sharp turns of the polyline (a square
-//! bounded by one closed curve keeps its four corners). Seams get
+//! on both patches' boundaries), at sharp turns of the polyline (a square
+//! bounded by one closed curve keeps its four corners) and at polyline
+//! vertices a chord would cut a thin face at ([`CHORD_SAGITTA_FRACTION`]). Seams get
 //! `max(1, round(L / size))` segments, at equal arc length; their vertices
 //! lie inside a model face and are not on feature curves.
 
@@ -26,6 +27,16 @@ use crate::mesh::{Topology, TriMesh, VertexId};
 /// Turning angle of a feature polyline above which its vertex is kept as a
 /// mesh vertex (degrees).
 pub const SHARP_TURN_DEG: f64 = 40.0;
+
+/// A polyline vertex farther than this fraction of a model face's width
+/// (area over perimeter, half the width of a strip) from the chord of its
+/// two neighbours is kept as a mesh vertex: a one-triangle sliver face (two
+/// fault surfaces have faces 4 m long and 1 cm wide) otherwise loses 4–5 %
+/// of its area to the chord over its apex, more than the coverage check's
+/// 2 %. A round face never reaches it before the sharp-turn rule: a disk's
+/// width is `r/2`, and a chord's sagitta reaches `r/4` only at a turn of
+/// 82°.
+pub const CHORD_SAGITTA_FRACTION: f64 = 0.5;
 
 /// A point on the surface's edge `a b`: `(1 − t) a + t b` (`a == b` for a
 /// vertex).
@@ -201,20 +212,43 @@ fn atlas_min_segments(atlas: &Atlas) -> Vec<usize> {
 }
 
 /// Indices of the chain vertices where a feature curve's pieces end: its
-/// ends, atlas corners and sharp turns.
-fn piece_ends(surface: &TriMesh, atlas: &Atlas, verts: &[VertexId]) -> Vec<usize> {
+/// ends, atlas corners (`corners`, sorted), sharp turns, and vertices farther from the chord of
+/// their two polyline neighbours than [`CHORD_SAGITTA_FRACTION`] of
+/// `width` (the smallest area-over-perimeter of the model faces the curve
+/// bounds): a chord over such a vertex would cut a thin face across.
+fn piece_ends(surface: &TriMesh, corners: &[VertexId], verts: &[VertexId], width: f64) -> Vec<usize> {
     let m = verts.len() - 1;
     let mut ends = vec![0];
     for i in 1..m {
-        let corner = atlas.corners.binary_search(&verts[i]).is_ok();
+        let corner = corners.binary_search(&verts[i]).is_ok();
         let (p, q, r) = (surface.position(verts[i - 1]), surface.position(verts[i]), surface.position(verts[i + 1]));
         let turn = angle_between(&(q - p), &(r - q)).to_degrees();
-        if corner || turn > SHARP_TURN_DEG {
+        let sagitta = (q - p).cross(&(r - p)).norm() / (r - p).norm();
+        if corner || turn > SHARP_TURN_DEG || sagitta > CHORD_SAGITTA_FRACTION * width {
             ends.push(i);
         }
     }
     ends.push(m);
     ends
+}
+
+/// Per model face, its area over the length of the curves bounding it (a
+/// curve with the face on both sides counted twice); infinite for a face
+/// without curves.
+fn face_widths(surface: &TriMesh, model: &QuadModel) -> Vec<f64> {
+    let mut area = vec![0.0; model.n_faces];
+    for (t, &f) in model.face_per_triangle.iter().enumerate() {
+        area[f as usize] += surface.face_area(crate::mesh::FaceId(t as u32));
+    }
+    let mut perimeter = vec![0.0; model.n_faces];
+    for (curve, faces) in model.features.curves.iter().zip(&model.faces_per_curve) {
+        let length: f64 =
+            curve.vertices.windows(2).map(|w| (surface.position(w[1]) - surface.position(w[0])).norm()).sum();
+        for &f in faces {
+            perimeter[f as usize] += length;
+        }
+    }
+    area.iter().zip(&perimeter).map(|(&a, &p)| if p > 0.0 { a / p } else { f64::INFINITY }).collect()
 }
 
 /// Splits `n` segments over pieces of lengths `lengths` with minimums
@@ -276,12 +310,14 @@ pub fn discretize_boundaries(
 
     // Pieces and segment counts of the feature curves, then parity.
     let curves = &model.features.curves;
+    let widths = face_widths(surface, model);
     let mut pieces: Vec<CurvePieces> = Vec::with_capacity(curves.len());
     let mut parity_curves = Vec::with_capacity(curves.len());
     for (c, curve) in curves.iter().enumerate() {
         let verts = &curve.vertices;
         let s = arc_lengths(surface, sizes, size, verts);
-        let ends = piece_ends(surface, atlas, verts);
+        let width = model.faces_per_curve[c].iter().map(|&f| widths[f as usize]).fold(f64::INFINITY, f64::min);
+        let ends = piece_ends(surface, &atlas.corners, verts, width);
         let lengths: Vec<f64> = ends.windows(2).map(|w| s[w[1]] - s[w[0]]).collect();
         let mut mins = Vec::with_capacity(lengths.len());
         for w in ends.windows(2) {
@@ -408,4 +444,51 @@ pub fn discretize_boundaries(
     let mut out = b.out;
     out.per_atlas_curve = per_atlas_curve;
     Ok(out)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::geom::Vec3;
+    use crate::mesh::fixtures;
+    use crate::quads::model::quad_model;
+
+    /// A mesh with only the points of a polyline (the test needs positions).
+    fn polyline(points: &[Vec3]) -> (TriMesh, Vec<VertexId>) {
+        let mesh = TriMesh::from_raw(points.to_vec(), &[]);
+        (mesh, (0..points.len() as u32).map(VertexId).collect())
+    }
+
+    #[test]
+    fn the_apex_of_a_sliver_face_ends_a_piece() {
+        // Two sides of a sliver 4 long and 0.01 wide at its apex: its
+        // area over perimeter is 0.02 / 8 = 0.0025.
+        let (mesh, verts) = polyline(&[Vec3::zeros(), Vec3::new(2.0, 0.01, 0.0), Vec3::new(4.0, 0.0, 0.0)]);
+        assert_eq!(piece_ends(&mesh, &[], &verts, 0.0025), vec![0, 1, 2]);
+        // The same turn on a wide face is crossed by a chord.
+        assert_eq!(piece_ends(&mesh, &[], &verts, 1.0), vec![0, 2]);
+    }
+
+    #[test]
+    fn a_round_face_keeps_no_vertex_of_its_boundary_below_the_sharp_turn() {
+        // A 12-gon of radius 1 (turns of 30°) around a disk of width 1/2.
+        let points: Vec<Vec3> = (0..=12)
+            .map(|k| {
+                let a = std::f64::consts::TAU * k as f64 / 12.0;
+                Vec3::new(a.cos(), a.sin(), 0.0)
+            })
+            .collect();
+        let (mesh, verts) = polyline(&points);
+        assert_eq!(piece_ends(&mesh, &[], &verts, 0.5), vec![0, 12]);
+    }
+
+    #[test]
+    fn a_square_is_as_wide_as_a_quarter_of_its_side() {
+        let mesh = fixtures::square(4);
+        let topo = Topology::new(&mesh);
+        let model = quad_model(&topo, &crate::atlas::features::detect_features(&mesh, &topo, 30.0));
+        let widths = face_widths(&mesh, &model);
+        assert_eq!(widths.len(), 1);
+        assert!((widths[0] - 0.25).abs() < 1e-12, "{widths:?}");
+    }
 }
