@@ -8,9 +8,10 @@
 //! atlas corners on the curve (where a seam meets it: that vertex must exist
 //! on both patches' boundaries), at sharp turns of the polyline (a square
 //! bounded by one closed curve keeps its four corners) and at polyline
-//! vertices a chord would cut a thin face at ([`CHORD_SAGITTA_FRACTION`]). Seams get
-//! `max(1, round(L / size))` segments, at equal arc length; their vertices
-//! lie inside a model face and are not on feature curves.
+//! vertices where a chord would cut a thin face across
+//! ([`CHORD_SAGITTA_FRACTION`]). Seams get `max(1, round(L / size))`
+//! segments, at equal arc length; their vertices lie inside a model face
+//! and are not on feature curves.
 
 use std::collections::HashMap;
 
@@ -212,10 +213,11 @@ fn atlas_min_segments(atlas: &Atlas) -> Vec<usize> {
 }
 
 /// Indices of the chain vertices where a feature curve's pieces end: its
-/// ends, atlas corners (`corners`, sorted), sharp turns, and vertices farther from the chord of
-/// their two polyline neighbours than [`CHORD_SAGITTA_FRACTION`] of
-/// `width` (the smallest area-over-perimeter of the model faces the curve
-/// bounds): a chord over such a vertex would cut a thin face across.
+/// ends, atlas corners (`corners`, sorted), sharp turns, and vertices
+/// farther from the chord of their two polyline neighbours than
+/// [`CHORD_SAGITTA_FRACTION`] of `width` (the smallest area-over-perimeter
+/// of the model faces the curve bounds): a chord over such a vertex would
+/// cut a thin face across.
 fn piece_ends(surface: &TriMesh, corners: &[VertexId], verts: &[VertexId], width: f64) -> Vec<usize> {
     let m = verts.len() - 1;
     let mut ends = vec![0];
