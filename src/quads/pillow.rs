@@ -99,9 +99,9 @@ pub struct PillowStats {
 /// of `mesh` (module documentation); returns what it did.
 pub fn pillow_bad_quads(mesh: &mut QuadMesh, projector: &SurfaceProjector) -> PillowStats {
     let t = Instant::now();
-    let mut stats = PillowStats { n_bad_before: bad_quads(mesh, projector).len(), ..PillowStats::default() };
+    let mut bad = bad_quads(mesh, projector);
+    let mut stats = PillowStats { n_bad_before: bad.len(), ..PillowStats::default() };
     for _ in 0..MAX_ROUNDS {
-        let bad = bad_quads(mesh, projector);
         if bad.is_empty() {
             break;
         }
@@ -117,11 +117,12 @@ pub fn pillow_bad_quads(mesh: &mut QuadMesh, projector: &SurfaceProjector) -> Pi
                 repaired_any = true;
             }
         }
+        bad = bad_quads(mesh, projector);
         if !repaired_any {
             break;
         }
     }
-    stats.n_bad_after = bad_quads(mesh, projector).len();
+    stats.n_bad_after = bad.len();
     stats.seconds = t.elapsed().as_secs_f64();
     stats
 }
