@@ -10,7 +10,8 @@
 //! response time gives a token away.
 //!
 //! With tokens configured, every route except `/healthz` (and `/metrics`
-//! unless `--metrics-auth`) needs `Authorization: Bearer TOKEN`; a missing
+//! unless `--metrics-auth`, and the browser pages' static shell, which holds
+//! no data) needs `Authorization: Bearer TOKEN`; a missing
 //! token answers 401 `unauthorized` with `WWW-Authenticate: Bearer
 //! realm="meshatlas"`, a wrong one adds `error="invalid_token"` (RFC 6750).
 //! The middleware ([`authenticate`]) puts the caller's [`Tenant`] into the
@@ -217,9 +218,14 @@ impl Auth {
         table.tenant_of(token)
     }
 
-    /// True when a request for `path` needs a token: everything but
-    /// `/healthz`, and `/metrics` only with `--metrics-auth`.
-    fn needs_token(&self, path: &str) -> bool {
+    /// True when `req` needs a token: everything but `/healthz`, the browser
+    /// pages' static shell and assets ([`super::page::is_public`]), and
+    /// `/metrics` only with `--metrics-auth`.
+    fn needs_token(&self, req: &Request) -> bool {
+        let path = req.uri().path();
+        if super::page::is_public(req.method(), path, req.headers()) {
+            return false;
+        }
         match path {
             "/healthz" => false,
             "/metrics" => self.metrics_auth,
@@ -293,7 +299,7 @@ fn challenge(invalid_token: bool) -> Response {
 /// refused request's body is drained (bounded), so the client reads the 401.
 pub async fn authenticate(State(st): State<AppState>, mut req: Request, next: Next) -> Response {
     let Some(auth) = st.auth.as_deref() else { return next.run(req).await };
-    if !auth.needs_token(req.uri().path()) {
+    if !auth.needs_token(&req) {
         return next.run(req).await;
     }
     let verdict = match presented(req.headers()) {

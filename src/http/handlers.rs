@@ -5,7 +5,7 @@ use axum::body::Body;
 use axum::extract::rejection::QueryRejection;
 use axum::extract::{Path, Query, Request, State};
 use axum::http::request::Parts;
-use axum::http::{HeaderValue, StatusCode, header};
+use axum::http::{HeaderMap, HeaderValue, StatusCode, header};
 use axum::response::{IntoResponse, Response};
 use serde::Deserialize;
 use serde_json::{Value, json};
@@ -15,7 +15,7 @@ use super::AppState;
 use super::auth::Scope;
 use super::error::ApiError;
 use super::upload::{self, SubmitQuery};
-use super::{encoding, range};
+use super::{encoding, page, range};
 use crate::failure::FailureKind;
 use crate::jobs::{JobId, JobRecord, JobsError, NewJob, model::rfc3339};
 use crate::pipeline::parse_params;
@@ -234,13 +234,26 @@ fn queue_full(st: &AppState) -> ApiError {
         .with("max_queued", max)
 }
 
-/// `GET /v1/jobs/{id}`.
+/// `GET /v1/jobs/{id}`: the job as JSON, or the browser page's static
+/// shell when `Accept` prefers HTML ([`page::prefers_html`]; the shell needs
+/// no token, so the scope is only read for JSON). Both answers vary by
+/// `Accept`.
 pub async fn get_job(
     State(st): State<AppState>,
-    scope: Scope,
+    headers: HeaderMap,
+    scope: Result<Scope, ApiError>,
     Path(id): Path<String>,
-) -> Result<Json<Value>, ApiError> {
-    let rec = st.jobs.get(visible_id(&st, &scope, &id).await?).await?;
+) -> Response {
+    let mut resp =
+        if page::prefers_html(&headers) { page::shell() } else { job_answer(&st, scope, &id).await.into_response() };
+    resp.headers_mut().insert(header::VARY, HeaderValue::from_static("accept"));
+    resp
+}
+
+/// The JSON answer of `GET /v1/jobs/{id}` for `scope`.
+async fn job_answer(st: &AppState, scope: Result<Scope, ApiError>, id: &str) -> Result<Json<Value>, ApiError> {
+    let scope = scope?;
+    let rec = st.jobs.get(visible_id(st, &scope, id).await?).await?;
     Ok(Json(job_json(&rec)))
 }
 

@@ -10,6 +10,9 @@
 //! to disk and [`HttpLimits::max_upload_bytes`] is enforced while streaming.
 //! [`serve`] runs the accept loop of [`server`] (header and body timeouts,
 //! bounded graceful shutdown, problem+json for hyper's own rejections).
+//! [`page`] serves the browser pages: `GET /` and, when `Accept` prefers
+//! HTML, `GET /v1/jobs/{id}` answer one static shell whose script reads the
+//! JSON API.
 //! This is the only module that knows axum.
 
 pub mod auth;
@@ -18,6 +21,7 @@ pub mod error;
 pub mod handlers;
 pub mod idle_body;
 pub mod multipart_framing;
+pub mod page;
 pub mod parser_answers;
 pub mod range;
 pub mod server;
@@ -97,6 +101,9 @@ pub fn routes() -> Vec<Route> {
         r(Method::DELETE, "/v1/jobs/{id}", delete(handlers::delete_job)),
         r(Method::POST, "/v1/jobs/{id}/cancel", post(handlers::cancel_job)),
         r(Method::GET, "/v1/jobs/{id}/artifacts/{name}", get(handlers::get_artifact)),
+        r(Method::GET, "/", get(page::index)),
+        r(Method::GET, page::SCRIPT_PATH, get(page::script)),
+        r(Method::GET, page::STYLE_PATH, get(page::style)),
         r(Method::GET, "/healthz", get(handlers::healthz)),
         r(Method::GET, "/metrics", get(handlers::metrics)),
     ]

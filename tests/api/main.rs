@@ -9,6 +9,7 @@ mod errors;
 mod fixtures;
 mod formats;
 mod jobs;
+mod page;
 mod restart;
 #[path = "../common/mod.rs"]
 mod shared;
