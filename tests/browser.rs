@@ -36,6 +36,8 @@ struct Server {
     base: String,
     dir: tempfile::TempDir,
     client: reqwest::Client,
+    /// The bearer token of the server's one tenant, when it needs one.
+    token: Option<String>,
 }
 
 impl Drop for Server {
@@ -46,12 +48,19 @@ impl Drop for Server {
 }
 
 impl Server {
-    /// Starts the binary with one worker.
-    fn start() -> Server {
+    /// Starts the binary with one worker; with `token`, that token is the
+    /// only one (`--auth-tokens`).
+    fn start(token: Option<&str>) -> Server {
         let dir = tempfile::tempdir().unwrap();
         let log = std::fs::File::create(dir.path().join("server.log")).unwrap();
-        let mut child = Command::new(env!("CARGO_BIN_EXE_meshatlas"))
-            .args(["serve", "--addr", "127.0.0.1:0", "--workers", "1"])
+        let mut cmd = Command::new(env!("CARGO_BIN_EXE_meshatlas"));
+        cmd.args(["serve", "--addr", "127.0.0.1:0", "--workers", "1"]);
+        if let Some(t) = token {
+            let tokens = dir.path().join("tokens.txt");
+            std::fs::write(&tokens, format!("{t} browser\n")).unwrap();
+            cmd.arg("--auth-tokens").arg(tokens);
+        }
+        let mut child = cmd
             .arg("--data-dir")
             .arg(dir.path().join("data"))
             .env("MESHATLAS_LOG", "warn")
@@ -70,16 +79,25 @@ impl Server {
             );
         };
         let client = reqwest::Client::builder().no_gzip().build().unwrap();
-        Server { child, base: format!("http://{addr}"), dir, client }
+        Server { child, base: format!("http://{addr}"), dir, client, token: token.map(str::to_string) }
     }
 
     fn url(&self, path: &str) -> String {
         format!("{}{path}", self.base)
     }
 
+    /// GET `path` with the server's token, if any.
+    fn get(&self, path: &str) -> reqwest::RequestBuilder {
+        let req = self.client.get(self.url(path));
+        match &self.token {
+            Some(t) => req.bearer_auth(t),
+            None => req,
+        }
+    }
+
     /// The job resource as JSON.
     async fn job(&self, id: &str) -> Value {
-        let resp = self.client.get(self.url(&format!("/v1/jobs/{id}"))).send().await.unwrap();
+        let resp = self.get(&format!("/v1/jobs/{id}")).send().await.unwrap();
         assert_eq!(resp.status(), 200);
         resp.json().await.unwrap()
     }
@@ -291,7 +309,7 @@ async fn check_downloads(s: &Server, dom: &str, job: &Value) {
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
 async fn a_finished_job_page_shows_full_progress_previews_and_working_downloads() {
     let Some(chromium) = chromium() else { return };
-    let s = Server::start();
+    let s = Server::start(None);
     let job = submit(&s, "sphere.stl", sphere_stl(4), "atlas,crossfield").await;
     let id = job["id"].as_str().unwrap();
     let job = s.wait_final(id).await;
@@ -327,40 +345,45 @@ async fn a_finished_job_page_shows_full_progress_previews_and_working_downloads(
     eprintln!("screenshot: {}", png.display());
 }
 
-#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
-async fn a_mesh_uploaded_through_the_form_runs_to_the_end_on_its_page() {
-    let Some(chromium) = chromium() else { return };
-    let Some(node) = node_with_puppeteer() else { return };
-    let s = Server::start();
-    let mesh = s.dir.path().join("ball.stl");
-    std::fs::write(&mesh, sphere_stl(5)).unwrap();
-    let png = out_dir("upload_form").join("upload.png");
-    let script = helpers_dir().join("upload.js");
-    let out = tokio::task::spawn_blocking({
-        let (node, chromium, base, mesh, png) = (node, chromium, s.base.clone(), mesh.clone(), png.clone());
-        move || {
-            Command::new(node)
-                .arg(script)
-                .args([
-                    chromium.as_os_str(),
-                    base.as_ref(),
-                    mesh.as_os_str(),
-                    "atlas,crossfield".as_ref(),
-                    png.as_os_str(),
-                ])
-                .output()
-                .expect("run node")
-        }
-    })
-    .await
-    .unwrap();
+/// Runs `tests/browser/upload.js` (puppeteer-core) against `s`: uploads
+/// `mesh` with stages atlas and crossfield through the start page, typing the
+/// server's token when it has one; its JSON report.
+async fn upload_through_the_form(s: &Server, node: PathBuf, chromium: PathBuf, mesh: &Path, png: &Path) -> Value {
+    let mut cmd = Command::new(node);
+    cmd.arg(helpers_dir().join("upload.js")).arg(chromium).arg(&s.base).arg(mesh).arg("atlas,crossfield").arg(png);
+    cmd.args(&s.token);
+    let out = tokio::task::spawn_blocking(move || cmd.output().expect("run node")).await.unwrap();
     let stdout = String::from_utf8_lossy(&out.stdout);
     assert!(out.status.success(), "upload.js failed: {}\n{stdout}", String::from_utf8_lossy(&out.stderr));
     let report: Value = serde_json::from_str(stdout.lines().last().unwrap_or("")).expect("JSON from upload.js");
     eprintln!("screenshot: {}\n{report}", png.display());
-
     assert_eq!(report["final_state"], "succeeded", "{report:#}");
     assert_eq!(report["console_errors"], serde_json::json!([]), "{report:#}");
+    report
+}
+
+/// Every image artifact of `job` is a loaded image in the page's `report`
+/// (through an object URL when `via_blob`), and there is at least one.
+fn assert_previews_loaded(job: &Value, report: &Value, via_blob: bool) {
+    let images = image_artifacts(job);
+    for name in &images {
+        let img = report["images"].as_array().unwrap().iter().find(|i| i["name"] == name.as_str());
+        let img = img.unwrap_or_else(|| panic!("no <img> for {name}: {report:#}"));
+        assert!(img["width"].as_u64() > Some(0), "{name} not loaded: {report:#}");
+        assert_eq!(img["blob"], via_blob, "{name}: loaded through an object URL: {report:#}");
+    }
+    assert!(!images.is_empty(), "the job has no image/* artifact (previews)");
+}
+
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn a_mesh_uploaded_through_the_form_runs_to_the_end_on_its_page() {
+    let Some(chromium) = chromium() else { return };
+    let Some(node) = node_with_puppeteer() else { return };
+    let s = Server::start(None);
+    let mesh = s.dir.path().join("ball.stl");
+    std::fs::write(&mesh, sphere_stl(5)).unwrap();
+    let png = out_dir("upload_form").join("upload.png");
+    let report = upload_through_the_form(&s, node, chromium, &mesh, &png).await;
     let seen: Vec<u64> = report["progress_seen"].as_array().unwrap().iter().map(|v| v.as_u64().unwrap()).collect();
     assert_eq!(seen.last(), Some(&100), "{report:#}");
     assert!(seen.windows(2).all(|w| w[0] <= w[1]), "the progress bar went back: {seen:?}");
@@ -379,9 +402,24 @@ async fn a_mesh_uploaded_through_the_form_runs_to_the_end_on_its_page() {
         report["downloads"].as_array().unwrap().iter().map(|d| d["name"].as_str().unwrap()).collect();
     let listed: Vec<&str> = job["artifacts"].as_array().unwrap().iter().map(|a| a["name"].as_str().unwrap()).collect();
     assert_eq!(names, listed, "the page links every artifact");
-    for name in image_artifacts(&job) {
-        let img = report["images"].as_array().unwrap().iter().find(|i| i["name"] == name.as_str());
-        assert!(img.is_some_and(|i| i["width"].as_u64() > Some(0)), "{name} not loaded: {report:#}");
-    }
+    assert_previews_loaded(&job, &report, false);
     assert!(std::fs::metadata(&png).is_ok_and(|m| m.len() > 10_000), "screenshot missing");
+}
+
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn with_tokens_the_page_asks_for_one_and_loads_previews_with_it() {
+    let Some(chromium) = chromium() else { return };
+    let Some(node) = node_with_puppeteer() else { return };
+    let s = Server::start(Some("browser-test-token-0123456789"));
+    let shell = s.client.get(s.url("/")).header("accept", "text/html").send().await.unwrap();
+    assert_eq!(shell.status(), 200, "the shell needs no token");
+    let list = s.client.get(s.url("/v1/jobs")).send().await.unwrap();
+    assert_eq!(list.status(), 401, "the JSON does");
+    let mesh = s.dir.path().join("small.stl");
+    std::fs::write(&mesh, sphere_stl(3)).unwrap();
+    let png = out_dir("upload_with_token").join("upload.png");
+    let report = upload_through_the_form(&s, node, chromium, &mesh, &png).await;
+    let job = s.job(report["id"].as_str().unwrap()).await;
+    assert_eq!((&job["state"], &job["input"]["name"]), (&"succeeded".into(), &"small.stl".into()));
+    assert_previews_loaded(&job, &report, true);
 }

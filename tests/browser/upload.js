@@ -2,8 +2,10 @@
 // (puppeteer-core driving the system chromium), follows the page to the job
 // page, records the progress bar until the job is final, waits for the
 // previews, takes a full-page screenshot, and prints one JSON line:
-// {url, id, progress_seen, final_state, images, downloads}.
-// Usage: node upload.js CHROMIUM BASE_URL MESH_FILE STAGES SCREENSHOT.png
+// {url, id, progress_seen, states_seen, final_state, images, downloads}.
+// With TOKEN, the start page is expected to ask for it (the server needs
+// one): it is typed into the token box before the upload.
+// Usage: node upload.js CHROMIUM BASE_URL MESH_FILE STAGES SCREENSHOT.png [TOKEN]
 'use strict';
 
 const puppeteer = require('puppeteer-core');
@@ -21,6 +23,7 @@ function pageState() {
     final: document.body.dataset.final || null,
     images: [...document.querySelectorAll('img[data-artifact]')].map((img) => ({
       name: img.dataset.artifact,
+      blob: img.src.startsWith('blob:'),
       width: Number(img.dataset.naturalWidth || 0),
       failed: img.dataset.failed === 'true',
     })),
@@ -31,7 +34,7 @@ function pageState() {
 }
 
 async function main() {
-  const [chromium, base, file, stages, screenshot] = process.argv.slice(2);
+  const [chromium, base, file, stages, screenshot, token] = process.argv.slice(2);
   const browser = await puppeteer.launch({
     executablePath: chromium,
     headless: true,
@@ -44,6 +47,12 @@ async function main() {
     page.on('console', (m) => { if (m.type() === 'error') consoleErrors.push(m.text()); });
     page.on('pageerror', (e) => consoleErrors.push(String(e)));
     await page.goto(base + '/', { waitUntil: 'domcontentloaded' });
+    if (token) {
+      await page.waitForSelector('#auth:not([hidden]) #auth-token');
+      await page.type('#auth-token', token);
+      await Promise.all([page.waitForNavigation(), page.click('#auth-form button')]);
+      consoleErrors.length = 0; // the 401 that asked for the token is expected
+    }
     await page.waitForSelector('#upload #file');
     await (await page.$('#file')).uploadFile(file);
     for (const s of stages.split(',').filter(Boolean)) await page.click(`input[name=stage][value="${s}"]`);

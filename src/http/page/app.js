@@ -265,7 +265,10 @@ function jobView(main) {
     },
     finish(job) {
       const artifacts = Array.isArray(job.artifacts) ? job.artifacts : [];
-      previews.replaceChildren(el('h2', { text: 'Previews' }), previewsNode(artifacts));
+      const images = artifacts.some((a) => String(a.media_type).startsWith('image/'));
+      if (images || job.state === 'succeeded') {
+        previews.replaceChildren(el('h2', { text: 'Previews' }), previewsNode(artifacts));
+      }
       downloads.replaceChildren(el('h2', { text: 'Downloads' }), downloadsNode(artifacts));
       summary.replaceChildren(el('h2', { text: 'Summary' }), summaryNode(job.summary));
       document.body.dataset.final = job.state;
