@@ -28,6 +28,7 @@ pub mod io;
 pub mod atlas;
 pub mod crossfield;
 pub mod frames;
+pub mod preview;
 pub mod quads;
 
 pub mod pipeline;

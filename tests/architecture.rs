@@ -16,6 +16,7 @@ const CORE: &[&str] = &[
     "src/crossfield",
     "src/frames",
     "src/quads",
+    "src/preview",
     "src/progress.rs",
     "src/failure.rs",
 ];

@@ -83,8 +83,16 @@ fn crossfield_msh_in_2_2_and_binary_opens_in_meshio_and_gmsh() {
     let (mesh, field) = disk_field(6);
     let dir = common::scratch("crossfield_artifacts", "msh_variants");
     let variants = [
-        ("v22.msh", OutputOptions { msh_version: MshVersion::V22, msh_binary: Some(false) }, "2.2"),
-        ("v41_binary.msh", OutputOptions { msh_version: MshVersion::V41, msh_binary: Some(true) }, "4.1"),
+        (
+            "v22.msh",
+            OutputOptions { msh_version: MshVersion::V22, msh_binary: Some(false), ..Default::default() },
+            "2.2",
+        ),
+        (
+            "v41_binary.msh",
+            OutputOptions { msh_version: MshVersion::V41, msh_binary: Some(true), ..Default::default() },
+            "4.1",
+        ),
     ];
     let script = r#"
 f = sys.argv[1]

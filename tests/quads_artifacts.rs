@@ -100,7 +100,7 @@ fn gmsh_opens_the_cube_in_every_msh_variant_with_its_model_and_no_inverted_quad(
     for (name, opts) in [
         ("ascii", OutputOptions { msh_binary: Some(false), ..Default::default() }),
         ("binary", OutputOptions { msh_binary: Some(true), ..Default::default() }),
-        ("msh22", OutputOptions { msh_version: MshVersion::V22, msh_binary: None }),
+        ("msh22", OutputOptions { msh_version: MshVersion::V22, msh_binary: None, ..Default::default() }),
     ] {
         let dir = scratch("quads_artifacts", &format!("cube_{name}"));
         let (msh, _) = write(&dir, &mesh, &model, &surface, &opts);

@@ -21,6 +21,7 @@
 
 pub mod error;
 pub mod format;
+pub mod glb;
 pub mod gzip;
 pub mod load;
 pub mod msh22;

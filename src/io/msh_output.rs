@@ -19,6 +19,7 @@ use crate::io::msh22::write::write_msh22;
 use crate::io::msh41::model::MshModel;
 use crate::io::msh41::write::{Msh41Options, write_msh41};
 use crate::io::write_error::WriteError;
+use crate::preview::PreviewSize;
 
 /// MSH file format version.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Serialize, Deserialize)]
@@ -33,7 +34,7 @@ pub enum MshVersion {
 }
 
 /// Output options of the mesh artifacts (`output` in the parameters).
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Serialize, Deserialize)]
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields, default)]
 pub struct OutputOptions {
     /// MSH version of `mesh.msh` and `crossfield.msh`: `"4.1"` (default) or
@@ -44,6 +45,22 @@ pub struct OutputOptions {
     /// binary from [`AUTO_BINARY_MIN_ELEMENTS`] elements on, ASCII below.
     /// `true` needs `msh_version` 4.1; MSH 2.2 is always ASCII.
     pub msh_binary: Option<bool>,
+    /// Draw the preview images (`preview.png` and one per stage). Default `true`.
+    pub previews: bool,
+    /// Size `[width, height]` of each preview image in pixels, both views
+    /// side by side. Default `[1200, 900]`.
+    pub preview_size: PreviewSize,
+}
+
+impl Default for OutputOptions {
+    fn default() -> Self {
+        Self {
+            msh_version: MshVersion::default(),
+            msh_binary: None,
+            previews: true,
+            preview_size: PreviewSize::default(),
+        }
+    }
 }
 
 /// Element count (all blocks) from which MSH 4.1 is binary by default.
@@ -97,10 +114,24 @@ mod tests {
         };
         assert_eq!(head(OutputOptions::default()), "4.1 0 8");
         assert_eq!(head(OutputOptions { msh_binary: Some(true), ..Default::default() }), "4.1 1 8");
-        assert_eq!(head(OutputOptions { msh_version: MshVersion::V22, msh_binary: Some(false) }), "2.2 0 8");
-        assert_eq!(head(OutputOptions { msh_version: MshVersion::V22, msh_binary: None }), "2.2 0 8");
-        assert!(OutputOptions { msh_version: MshVersion::V22, msh_binary: Some(true) }.validate().is_err());
-        assert!(OutputOptions { msh_version: MshVersion::V22, msh_binary: Some(false) }.validate().is_ok());
+        assert_eq!(
+            head(OutputOptions { msh_version: MshVersion::V22, msh_binary: Some(false), ..Default::default() }),
+            "2.2 0 8"
+        );
+        assert_eq!(
+            head(OutputOptions { msh_version: MshVersion::V22, msh_binary: None, ..Default::default() }),
+            "2.2 0 8"
+        );
+        assert!(
+            OutputOptions { msh_version: MshVersion::V22, msh_binary: Some(true), ..Default::default() }
+                .validate()
+                .is_err()
+        );
+        assert!(
+            OutputOptions { msh_version: MshVersion::V22, msh_binary: Some(false), ..Default::default() }
+                .validate()
+                .is_ok()
+        );
         let o: OutputOptions = serde_json::from_str(r#"{"msh_version": "2.2"}"#).unwrap();
         assert_eq!(o.msh_version, MshVersion::V22);
         assert!(serde_json::from_str::<OutputOptions>(r#"{"msh_version": "3"}"#).is_err());
@@ -133,7 +164,8 @@ mod tests {
         write_msh(&mut v, &at, &auto).unwrap();
         assert!(v.starts_with(b"$MeshFormat\n4.1 1 8\n"));
         v.clear();
-        write_msh(&mut v, &at, &OutputOptions { msh_version: MshVersion::V22, msh_binary: None }).unwrap();
+        write_msh(&mut v, &at, &OutputOptions { msh_version: MshVersion::V22, msh_binary: None, ..Default::default() })
+            .unwrap();
         assert!(v.starts_with(b"$MeshFormat\n2.2 0 8\n"), "2.2 stays ASCII at every size");
     }
 }

@@ -14,6 +14,7 @@ pub mod durable;
 pub mod error;
 pub mod memory;
 pub mod params;
+pub mod previews;
 pub mod report;
 pub mod run;
 pub mod stages;
@@ -21,17 +22,19 @@ pub mod stages;
 pub use error::PipelineError;
 pub use memory::{MemoryEstimate, peak_memory_estimate};
 pub use params::{ParamsError, PipelineParams, StageName, parse_params};
-pub use report::{ArtifactInfo, InputInfo, PipelineReport, StageReport, StageReports, StepTiming};
+pub use report::{ArtifactInfo, InputInfo, PipelineReport, PreviewOutcome, StageReport, StageReports, StepTiming};
 pub use run::{Products, REPORT_NAME, StageOutput, run_pipeline};
 
 /// Media type of an artifact by file extension (`.json`, `.msh`, `.vtu`,
-/// `.stl`; anything else is `application/octet-stream`).
+/// `.stl`, `.png`, `.glb`; anything else is `application/octet-stream`).
 pub fn media_type_for(name: &str) -> &'static str {
     match std::path::Path::new(name).extension().and_then(|e| e.to_str()) {
         Some("json") => "application/json",
         Some("msh") => "application/x-gmsh",
         Some("vtu") => "application/vnd.vtk.vtu+xml",
         Some("stl") => "model/stl",
+        Some("png") => "image/png",
+        Some("glb") => "model/gltf-binary",
         _ => "application/octet-stream",
     }
 }

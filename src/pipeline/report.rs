@@ -55,6 +55,19 @@ pub struct ArtifactInfo {
     pub media_type: String,
 }
 
+/// One preview image: drawn and written, or why not (a failed preview
+/// never fails the job).
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct PreviewOutcome {
+    /// Artifact name (`preview.png`, `atlas.png`, …).
+    pub name: String,
+    /// Wall seconds to draw, encode and write it.
+    pub seconds: f64,
+    /// Why it was not written, when it was not.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub error: Option<String>,
+}
+
 /// Everything a pipeline run reports.
 #[derive(Debug, Clone, Serialize)]
 pub struct PipelineReport {
@@ -73,6 +86,9 @@ pub struct PipelineReport {
     pub timings: Vec<StepTiming>,
     /// Files written (besides `report.json` itself).
     pub artifacts: Vec<ArtifactInfo>,
+    /// The preview images, in the order drawn (empty with `output.previews`
+    /// off).
+    pub previews: Vec<PreviewOutcome>,
     /// Wall seconds of the whole run.
     pub total_seconds: f64,
 }
@@ -255,6 +271,7 @@ mod tests {
             stages_added: vec![],
             timings: vec![],
             artifacts: vec![],
+            previews: vec![],
             total_seconds: 0.0,
         }
     }

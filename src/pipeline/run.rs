@@ -22,6 +22,7 @@ use std::io::Write;
 use std::path::{Path, PathBuf};
 use std::time::Instant;
 
+use crate::io::glb::{GlbScene, write_glb};
 use crate::io::load::{finish, read_raw};
 use crate::io::msh_output::write_msh;
 use crate::io::msh41::model::MshModel;
@@ -34,7 +35,8 @@ use super::durable::Syncer;
 use super::error::PipelineError;
 use super::media_type_for;
 use super::params::{PipelineParams, StageName};
-use super::report::{ArtifactInfo, InputInfo, PipelineReport, StageReport, StageReports, StepTiming};
+use super::previews::Previews;
+use super::report::{ArtifactInfo, InputInfo, PipelineReport, PreviewOutcome, StageReport, StageReports, StepTiming};
 
 /// Name of the report artifact.
 pub const REPORT_NAME: &str = "report.json";
@@ -52,6 +54,8 @@ pub struct StageOutput {
     /// `<stage>.write`, so the stage's own time compares with other tools'
     /// computation times).
     pub write_seconds: f64,
+    /// The stage's preview images (step `<stage>.preview`).
+    pub previews: Previews,
 }
 
 /// Data a stage reads: the repaired input and the products of earlier
@@ -68,6 +72,11 @@ pub struct Products {
     pub atlas: Option<crate::atlas::Atlas>,
     /// The crossfield, kept when a later stage (quads) reads it.
     pub crossfield: Option<crate::crossfield::Crossfield>,
+    /// The atlas triangulation and the preview colour of each of its
+    /// triangles (its patch's), for `surface.glb`.
+    pub patch_colors: Option<(TriMesh, Vec<[u8; 3]>)>,
+    /// The crossfield singularities and their index colours, for `surface.glb`.
+    pub singular_points: Vec<(crate::geom::Vec3, [u8; 3])>,
 }
 
 /// Runs one stage.
@@ -193,8 +202,15 @@ pub fn run_pipeline(
         n_tets: loaded.volume.as_ref().map(|v| v.tets.len()),
     };
     let repair = loaded.repair;
-    let mut products =
-        Products { surface: loaded.surface, volume: loaded.volume, features: None, atlas: None, crossfield: None };
+    let mut products = Products {
+        surface: loaded.surface,
+        volume: loaded.volume,
+        features: None,
+        atlas: None,
+        crossfield: None,
+        patch_colors: None,
+        singular_points: Vec::new(),
+    };
 
     let (stages, stages_added) = params.stages_to_run();
     if !stages_added.is_empty() {
@@ -203,6 +219,7 @@ pub fn run_pipeline(
     }
     let mut reports = StageReports::default();
     let mut artifacts = Vec::new();
+    let mut previews: Vec<PreviewOutcome> = Vec::new();
     let share = 0.7 / stages.len().max(1) as f64;
     for (i, &stage) in stages.iter().enumerate() {
         progress.check()?;
@@ -212,13 +229,17 @@ pub fn run_pipeline(
         let _stage_span = tracing::info_span!("stage", name).entered();
         let out = timed(&mut timings, name, || run_stage(stage, params, &mut products, out_dir, &syncer, &p))?;
         if let Some(t) = timings.last_mut() {
-            t.seconds = (t.seconds - out.write_seconds).max(0.0);
+            t.seconds = (t.seconds - out.write_seconds - out.previews.seconds).max(0.0);
         }
         timings.push(StepTiming { step: format!("{name}.write"), seconds: out.write_seconds });
+        if !out.previews.outcomes.is_empty() {
+            timings.push(StepTiming { step: format!("{name}.preview"), seconds: out.previews.seconds });
+        }
         p.set(1.0);
-        for file in &out.artifacts {
+        for file in out.artifacts.iter().chain(&out.previews.artifacts) {
             artifacts.push(artifact_info(out_dir, file)?);
         }
+        previews.extend(out.previews.outcomes);
         reports.insert(out.report);
     }
 
@@ -233,6 +254,33 @@ pub fn run_pipeline(
         let vtu = write_file(out_dir, Some(&syncer), "mesh.vtu", |w| write_surface_vtu(w, surface))?;
         Ok(vec![msh, vtu])
     })?;
+    let mut input_preview = Previews::default();
+    input_preview.draw(&params.output, out_dir, &syncer, "preview.png", |size| {
+        // Edges are only extracted when repair found a boundary or a non-manifold edge.
+        let defects = if repair.n_boundary_loops + repair.n_nonmanifold_edges > 0 {
+            crate::preview::defect_edges(surface)
+        } else {
+            Vec::new()
+        };
+        crate::preview::input_preview(surface, &defects, size)
+    });
+    input_preview.write(&params.output, out_dir, &syncer, "surface.glb", |w| {
+        let (positions, triangles, face_colors) = match &products.patch_colors {
+            Some((mesh, colors)) => (&mesh.positions, &mesh.triangles, Some(&colors[..])),
+            None => (&surface.positions, &surface.triangles, None),
+        };
+        let scene = GlbScene { positions, triangles, face_colors, points: &products.singular_points };
+        write_glb(w, &scene)
+    });
+    // Steps `preview` (the image) and `glb`, each when written or tried.
+    for (step, o) in ["preview", "glb"].iter().zip(&input_preview.outcomes) {
+        timings.push(StepTiming { step: step.to_string(), seconds: o.seconds });
+    }
+    let mut written = written;
+    for file in &input_preview.artifacts {
+        written.push(artifact_info(out_dir, file)?);
+    }
+    previews.splice(0..0, input_preview.outcomes);
     // Every artifact on disk before the report says the job succeeded.
     timed(&mut timings, "sync", || syncer.finish())
         .map_err(|(path, e)| PipelineError::Write { path, source: e.into() })?;
@@ -246,6 +294,7 @@ pub fn run_pipeline(
         stages_added,
         timings,
         artifacts: all,
+        previews,
         total_seconds: start.elapsed().as_secs_f64(),
     };
     write_file(out_dir, None, REPORT_NAME, |w| {

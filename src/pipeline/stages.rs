@@ -17,12 +17,14 @@ use crate::failure::FailureKind;
 use crate::frames::{FramesError, compute_frame_field, write_frames_vtu, write_singular_edges_vtu};
 use crate::io::WriteError;
 use crate::mesh::{Topology, TriMesh};
+use crate::preview;
 use crate::progress::Progress;
 use crate::quads::{QuadsError, build_quads, write_quads_msh, write_quads_vtu};
 
 use super::durable::Syncer;
 use super::error::PipelineError;
 use super::params::{PipelineParams, StageName};
+use super::previews::Previews;
 use super::report::StageReport;
 use super::run::{Products, StageOutput};
 
@@ -48,7 +50,8 @@ fn features<'a>(products: &'a mut Products, topo: &Topology, feature_angle_deg: 
     products.features.get_or_insert_with(|| detect_features(&products.surface, topo, feature_angle_deg))
 }
 
-/// Stage 1: the atlas; artifacts `atlas.msh`, `atlas.vtu`, `atlas_uv.vtu`.
+/// Stage 1: the atlas; artifacts `atlas.msh`, `atlas.vtu`, `atlas_uv.vtu`
+/// and the preview `atlas.png`.
 pub fn run_atlas(
     params: &PipelineParams,
     products: &mut Products,
@@ -76,18 +79,30 @@ pub fn run_atlas(
     );
     let artifacts = vec![msh?, vtu?, uv?];
     let write_seconds = write_start.elapsed().as_secs_f64();
+    let mut previews = Previews::default();
+    if params.output.previews {
+        let start = std::time::Instant::now();
+        let patch_color = preview::atlas_patch_colors(&atlas);
+        let face_colors = atlas.patch_per_face.iter().map(|&p| patch_color[p as usize]).collect();
+        products.patch_colors = Some((atlas.mesh.clone(), face_colors));
+        previews.seconds += start.elapsed().as_secs_f64();
+        previews.draw(&params.output, out_dir, syncer, "atlas.png", |size| {
+            preview::atlas_preview(&atlas, &patch_color, size)
+        });
+    }
     let report = StageReport::Atlas(Box::new(atlas.report.clone()));
     products.features = Some(atlas.features.clone());
     // Later stages (quads) read the atlas; without them it is dropped now.
     if params.stages_to_run().0.contains(&StageName::Quads) {
         products.atlas = Some(atlas);
     }
-    Ok(StageOutput { report, artifacts, write_seconds })
+    Ok(StageOutput { report, artifacts, write_seconds, previews })
 }
 
 /// Stage 2: the crossfield, aligned with boundary and feature edges
 /// (those of the atlas when it ran, with the same angle threshold);
-/// artifacts `crossfield.vtu`, `singularities.json`, `crossfield.msh`.
+/// artifacts `crossfield.vtu`, `singularities.json`, `crossfield.msh` and
+/// the preview `crossfield.png`.
 pub fn run_crossfield(
     params: &PipelineParams,
     products: &mut Products,
@@ -115,15 +130,22 @@ pub fn run_crossfield(
         })?,
     ];
     let write_seconds = write_start.elapsed().as_secs_f64();
+    let mut previews = Previews::default();
+    previews.draw(&params.output, out_dir, syncer, "crossfield.png", |size| {
+        preview::crossfield_preview(surface, &field, size)
+    });
+    products.singular_points =
+        field.singularities.iter().map(|s| (s.position, preview::palette::index_color(s.index))).collect();
     let report = StageReport::Crossfield(Box::new(field.report.clone()));
     if params.stages_to_run().0.contains(&StageName::Quads) {
         products.crossfield = Some(field);
     }
-    Ok(StageOutput { report, artifacts, write_seconds })
+    Ok(StageOutput { report, artifacts, write_seconds, previews })
 }
 
 /// Stage 3: the volume (the uploaded tetrahedra, or a mesh of the enclosed
-/// volume) and its frame field; artifacts `frames.vtu`, `frames_singular.vtu`.
+/// volume) and its frame field; artifacts `frames.vtu`, `frames_singular.vtu`
+/// and the preview `frames.png`.
 pub fn run_frames(
     params: &PipelineParams,
     products: &mut Products,
@@ -148,8 +170,12 @@ pub fn run_frames(
         write_artifact(out_dir, syncer, "frames_singular.vtu", |w| write_singular_edges_vtu(&field, w))?,
     ];
     let write_seconds = write_start.elapsed().as_secs_f64();
+    let mut previews = Previews::default();
+    previews.draw(&params.output, out_dir, syncer, "frames.png", |size| {
+        preview::frames_preview(&products.surface, &field, size)
+    });
     let report = StageReport::Frames(Box::new(field.report));
-    Ok(StageOutput { report, artifacts, write_seconds })
+    Ok(StageOutput { report, artifacts, write_seconds, previews })
 }
 
 /// The failure of the quads stage: invalid options (only the crossfield's
@@ -169,7 +195,8 @@ fn quads_failure(e: QuadsError) -> PipelineError {
 }
 
 /// Stage 4: the all-quad surface mesh, from the atlas and the crossfield
-/// of the earlier stages; artifacts `quads.msh`, `quads.vtu`.
+/// of the earlier stages; artifacts `quads.msh`, `quads.vtu` and the
+/// preview `quads.png`.
 pub fn run_quads(
     params: &PipelineParams,
     products: &mut Products,
@@ -192,7 +219,11 @@ pub fn run_quads(
         write_artifact(out_dir, syncer, "quads.vtu", |w| write_quads_vtu(&result.mesh, &result.quality, w))?,
     ];
     let write_seconds = write_start.elapsed().as_secs_f64();
-    Ok(StageOutput { report: StageReport::Quads(Box::new(result.report)), artifacts, write_seconds })
+    let mut previews = Previews::default();
+    previews.draw(&params.output, out_dir, syncer, "quads.png", |size| {
+        preview::quads_preview(&products.surface, &result.mesh, &result.quality, size)
+    });
+    Ok(StageOutput { report: StageReport::Quads(Box::new(result.report)), artifacts, write_seconds, previews })
 }
 
 #[cfg(test)]

@@ -38,10 +38,11 @@ fn no_stage_run_writes_mesh_vtu_and_report() {
     assert_eq!(report.input.name, "sphere.obj");
     assert_eq!(report.input.format, "obj");
     let steps: Vec<&str> = report.timings.iter().map(|t| t.step.as_str()).collect();
-    assert_eq!(steps, ["load", "repair", "write", "sync"]);
+    assert_eq!(steps, ["load", "repair", "write", "preview", "glb", "sync"]);
     assert!(report.timings.iter().all(|t| t.seconds >= 0.0));
     let names: Vec<&str> = report.artifacts.iter().map(|a| a.name.as_str()).collect();
-    assert_eq!(names, ["mesh.msh", "mesh.vtu"]);
+    assert_eq!(names, ["mesh.msh", "mesh.vtu", "preview.png", "surface.glb"]);
+    assert!(report.previews.iter().all(|p| p.error.is_none()), "{:?}", report.previews);
     for a in &report.artifacts {
         assert_eq!(std::fs::metadata(out.join(&a.name)).unwrap().len(), a.bytes);
     }

@@ -329,7 +329,7 @@ mod tests {
         for opts in [
             OutputOptions::default(),
             OutputOptions { msh_binary: Some(true), ..Default::default() },
-            OutputOptions { msh_version: MshVersion::V22, msh_binary: None },
+            OutputOptions { msh_version: MshVersion::V22, msh_binary: None, ..Default::default() },
         ] {
             let mut bytes = Vec::new();
             write_quads_msh(&mesh, &model, &mut bytes, &opts).unwrap();
