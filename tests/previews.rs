@@ -153,3 +153,26 @@ fn patches_that_share_an_edge_never_share_a_colour() {
     }
     assert!(shared > 0);
 }
+
+#[test]
+fn the_cube_quads_preview_marks_its_eight_corners_as_valence_three() {
+    let cube = fixtures::cube(6);
+    let atlas = build_atlas(&cube, &AtlasOptions::default(), &Progress::none()).unwrap();
+    let topo = Topology::new(&cube);
+    let aligned = detect_features(&cube, &topo, 40.0).is_feature_edge;
+    let field = compute_crossfield(&cube, &topo, &aligned, &CrossfieldOptions::default(), &Progress::none()).unwrap();
+    let quads =
+        meshatlas::quads::build_quads(&cube, &atlas, &field, &Default::default(), &Progress::none()).expect("quads");
+    let irregular = quads.quality.irregular_vertices();
+    // A cube's quad mesh is regular but at its corners: three quads each.
+    assert_eq!(irregular.len(), 8, "{irregular:?}");
+    let img = meshatlas::preview::quads_preview(&cube, &quads.mesh, &quads.quality, SIZE).unwrap();
+    let framing = Framing::fit(&cube.positions, SIZE).unwrap();
+    let want = meshatlas::preview::palette::valence_color(3);
+    for &v in &irregular {
+        assert_eq!(quads.quality.valence[v as usize], 3);
+        let p = quads.mesh.vertices.positions[v as usize];
+        let seen = (0..2).any(|k| pixel(&framing, k, &p).is_some_and(|(x, y)| img.pixel(x, y) == want));
+        assert!(seen, "corner {p:?} is not on a valence-3 dot");
+    }
+}

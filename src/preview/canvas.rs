@@ -152,24 +152,34 @@ impl Canvas {
         z <= f64::from(self.depth[i]) + bias
     }
 
-    /// Sets the pixels of a disc of radius `r` around `(x, y)` to `color`.
-    fn stamp(&mut self, x: f64, y: f64, r: f64, color: [u8; 3]) {
+    /// Calls `hit` with every pixel whose centre is within `r` of `(x, y)`.
+    fn disc_pixels(&self, x: f64, y: f64, r: f64, hit: &mut impl FnMut(usize)) {
         let (x0, x1) = ((x - r).floor().max(0.0) as i64, (x + r).ceil().min(self.width as f64 - 1.0) as i64);
         let (y0, y1) = ((y - r).floor().max(0.0) as i64, (y + r).ceil().min(self.height as f64 - 1.0) as i64);
         for py in y0..=y1 {
             for px in x0..=x1 {
                 let (dx, dy) = (px as f64 + 0.5 - x, py as f64 + 0.5 - y);
                 if dx * dx + dy * dy <= r * r {
-                    self.color[py as usize * self.width + px as usize] = color;
+                    hit(py as usize * self.width + px as usize);
                 }
             }
         }
     }
 
-    /// Draws the segment `a → b` (projected: pixel x, y, depth) `width`
-    /// pixels wide where it is in front of the surface within `bias` (with
-    /// `bias = ∞` it is drawn everywhere).
-    pub fn line(&mut self, a: [f64; 3], b: [f64; 3], width: f64, color: [u8; 3], bias: f64) {
+    /// Sets the pixels of a disc of radius `r` around `(x, y)` to `color`.
+    fn stamp(&mut self, x: f64, y: f64, r: f64, color: [u8; 3]) {
+        let mut hits = Vec::new();
+        self.disc_pixels(x, y, r, &mut |i| hits.push(i));
+        for i in hits {
+            self.color[i] = color;
+        }
+    }
+
+    /// Calls `hit` with every pixel of the segment `a → b` (projected: pixel
+    /// x, y, depth) `width` pixels wide that is in front of the surface
+    /// within `bias` (with `bias = ∞`, every pixel of it). A pixel may be
+    /// hit more than once.
+    pub fn line_pixels(&self, a: [f64; 3], b: [f64; 3], width: f64, bias: f64, mut hit: impl FnMut(usize)) {
         let len = ((b[0] - a[0]).powi(2) + (b[1] - a[1]).powi(2)).sqrt();
         if !len.is_finite() {
             return;
@@ -180,8 +190,17 @@ impl Canvas {
             let t = s as f64 / steps as f64;
             let (x, y, z) = (a[0] + t * (b[0] - a[0]), a[1] + t * (b[1] - a[1]), a[2] + t * (b[2] - a[2]));
             if self.visible(x, y, z, bias) {
-                self.stamp(x, y, r, color);
+                self.disc_pixels(x, y, r, &mut hit);
             }
+        }
+    }
+
+    /// Draws the segment `a → b` in `color` ([`Canvas::line_pixels`]).
+    pub fn line(&mut self, a: [f64; 3], b: [f64; 3], width: f64, color: [u8; 3], bias: f64) {
+        let mut hits = Vec::new();
+        self.line_pixels(a, b, width, bias, |i| hits.push(i));
+        for i in hits {
+            self.color[i] = color;
         }
     }
 

@@ -25,6 +25,8 @@ const GLYPH_CELL: usize = 26;
 const FRAMES_SURFACE_ALPHA: f64 = 0.3;
 /// Colour of the quads' shading under the wireframe.
 const QUAD_SURFACE: [u8; 3] = [236, 222, 180];
+/// Colour of the quad wireframe (blended by [`wireframe_opacity`]).
+const WIRE: [u8; 3] = [40, 40, 40];
 
 /// The two views of a preview and the tolerances derived from the model size.
 #[derive(Debug, Clone, Copy)]
@@ -302,6 +304,18 @@ pub fn frames_preview(surface: &TriMesh, field: &FrameField, size: PreviewSize) 
     Ok(Image::of(&canvas))
 }
 
+/// Opacity of the quad wireframe: full for quads many pixels wide, down
+/// to a faint texture where the mean edge is a pixel or two long (an
+/// opaque wireframe would paint the whole surface dark).
+fn wireframe_opacity(positions: &[Vec3], edges: &[[u32; 2]], scale: f64) -> f64 {
+    if edges.is_empty() {
+        return 1.0;
+    }
+    let total: f64 = edges.iter().map(|&[a, b]| (positions[a as usize] - positions[b as usize]).norm()).sum();
+    let mean_px = scale * total / edges.len() as f64;
+    (mean_px / 10.0).clamp(0.15, 0.9)
+}
+
 /// `quads.png`: the quads shaded, their edges as a wireframe, irregular
 /// vertices as dots coloured by valence, framed like the surface
 /// `reference` they were built on.
@@ -326,17 +340,17 @@ pub fn quads_preview(
     edges.sort_unstable();
     edges.dedup();
     let irregular = quality.irregular_vertices();
+    let alpha = wireframe_opacity(positions, &edges, framing.views[0].scale);
     let mut canvas = framing.render(|c, view| {
         c.draw_surface(view, positions, split(), |_| QUAD_SURFACE);
         c.outline(framing.outline_jump);
+        let mut wire = vec![false; c.color.len()];
         for &[a, b] in &edges {
-            c.line(
-                view.project(&positions[a as usize]),
-                view.project(&positions[b as usize]),
-                1.0,
-                [60, 60, 60],
-                framing.bias,
-            );
+            let (pa, pb) = (view.project(&positions[a as usize]), view.project(&positions[b as usize]));
+            c.line_pixels(pa, pb, 1.0, framing.bias, |i| wire[i] = true);
+        }
+        for (i, _) in wire.iter().enumerate().filter(|(_, w)| **w) {
+            c.blend_pixel(i, WIRE, alpha);
         }
         for &v in &irregular {
             let color = valence_color(quality.valence[v as usize]);
