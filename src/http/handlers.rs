@@ -406,18 +406,57 @@ async fn serve_gzip(path: &std::path::Path, req: &Parts) -> Result<Response, Api
     Ok(resp)
 }
 
+/// Query of `GET /v1/jobs/{id}/artifacts/{name}` (other parameters are
+/// ignored, e.g. a browser's cache buster).
+#[derive(Debug, Deserialize)]
+pub struct ArtifactQuery {
+    /// `1`: answer 307 to a presigned URL of the artifact store when it has
+    /// them (S3); `0` or absent: serve the file.
+    #[serde(default, deserialize_with = "zero_or_one")]
+    pub redirect: Option<u8>,
+}
+
+/// `0` or `1` exactly (the spec's enum); anything else is a 400.
+fn zero_or_one<'de, D: serde::Deserializer<'de>>(d: D) -> Result<Option<u8>, D::Error> {
+    match String::deserialize(d)?.as_str() {
+        "0" => Ok(Some(0)),
+        "1" => Ok(Some(1)),
+        other => Err(serde::de::Error::custom(format!("redirect must be 0 or 1, not {other:?}"))),
+    }
+}
+
+/// 307 to `url`, not cached (the URL expires).
+fn presigned_redirect(url: &str) -> Response {
+    let mut resp = StatusCode::TEMPORARY_REDIRECT.into_response();
+    if let Ok(v) = HeaderValue::from_str(url) {
+        resp.headers_mut().insert(header::LOCATION, v);
+    }
+    resp.headers_mut().insert(header::CACHE_CONTROL, HeaderValue::from_static("no-store"));
+    resp
+}
+
 /// `GET /v1/jobs/{id}/artifacts/{name}`: the file, with one byte range at
 /// most (RFC 9110: unknown units, invalid or multiple ranges give the whole
 /// file; a stale `If-Range` too). Without `Range`, a client whose
 /// `Accept-Encoding` allows gzip gets the gzip representation; see
-/// [`encoding`].
+/// [`encoding`]. With `?redirect=1` and an S3 artifact store, a 307 to a
+/// presigned URL of the object (valid
+/// [`crate::jobs::service::PRESIGNED_URL_SECS`]) instead.
 pub async fn get_artifact(
     State(st): State<AppState>,
     scope: Scope,
     Path((id, name)): Path<(String, String)>,
+    query: Result<Query<ArtifactQuery>, QueryRejection>,
     req: Request,
 ) -> Result<Response, ApiError> {
-    let (path, art) = st.jobs.artifact(visible_id(&st, &scope, &id).await?, name).await?;
+    let Query(query) = query.map_err(bad_query)?;
+    let id = visible_id(&st, &scope, &id).await?;
+    if query.redirect == Some(1)
+        && let Some(url) = st.jobs.artifact_url(id, name.clone()).await?
+    {
+        return Ok(presigned_redirect(&url));
+    }
+    let (path, art) = st.jobs.artifact(id, name).await?;
     let (req, _) = req.into_parts();
     let gzip = !req.headers.contains_key(header::RANGE) && encoding::accepts_gzip(&req.headers);
     let mut resp = if gzip { serve_gzip(&path, &req).await? } else { serve_identity(&path, &req).await? };

@@ -116,6 +116,36 @@ pub trait ArtifactStore: Send + Sync {
     /// # Errors
     /// [`ArtifactError`] when it does not.
     fn probe(&self) -> Result<(), ArtifactError>;
+
+    /// The job directories (`jobs/<id>/`, as `<id>`) whose newest object
+    /// is older than `age`, so a sweep can remove those no job record
+    /// names (an upload cut off between the bucket and the row); empty for
+    /// the data directory, whose orphans the service removes as files.
+    ///
+    /// # Errors
+    /// [`ArtifactError`] when the store cannot be listed.
+    fn job_dirs_older_than(&self, age: std::time::Duration) -> Result<Vec<String>, ArtifactError> {
+        let _ = age;
+        Ok(Vec::new())
+    }
+
+    /// A URL that downloads the object `key` without credentials for
+    /// `expires`, answered with `media_type` and as an attachment named
+    /// `filename`; `None` for a store that has no URLs of its own (the data
+    /// directory), whose files the API serves itself.
+    ///
+    /// # Errors
+    /// [`ArtifactError`] when the store cannot sign one.
+    fn presigned_get(
+        &self,
+        key: &str,
+        filename: &str,
+        media_type: &str,
+        expires: std::time::Duration,
+    ) -> Result<Option<String>, ArtifactError> {
+        let _ = (key, filename, media_type, expires);
+        Ok(None)
+    }
 }
 
 /// The data directory as the store: nothing to transfer.
@@ -150,6 +180,8 @@ const PART_BYTES: usize = 10 * 1024 * 1024;
 /// An S3-compatible bucket.
 pub struct S3Artifacts {
     store: Arc<dyn ObjectStore>,
+    /// The same client, for presigned URLs.
+    signer: Arc<object_store::aws::AmazonS3>,
     prefix: String,
     rt: BlockingRuntime,
 }
@@ -179,9 +211,9 @@ impl S3Artifacts {
         if let Some(ep) = std::env::var("AWS_ENDPOINT_URL").ok().filter(|e| !e.is_empty()) {
             b = b.with_allow_http(ep.starts_with("http://")).with_endpoint(ep).with_virtual_hosted_style_request(false);
         }
-        let store = b.build().map_err(remote)?;
+        let signer = Arc::new(b.build().map_err(remote)?);
         let rt = BlockingRuntime::new("meshatlas-s3").map_err(remote)?;
-        Ok(Self { store: Arc::new(store), prefix: prefix.trim_matches('/').to_string(), rt })
+        Ok(Self { store: signer.clone(), signer, prefix: prefix.trim_matches('/').to_string(), rt })
     }
 
     /// The object path of `key` under the prefix.
@@ -273,6 +305,51 @@ impl ArtifactStore for S3Artifacts {
         false
     }
 
+    /// Lists every object under `jobs/` once, keeping per job directory
+    /// its newest `last_modified`.
+    fn job_dirs_older_than(&self, age: std::time::Duration) -> Result<Vec<String>, ArtifactError> {
+        let (store, dir) = (self.store.clone(), self.path("jobs"));
+        let under = format!("{dir}/");
+        self.run(async move {
+            use futures_util::StreamExt;
+            let mut newest: std::collections::BTreeMap<String, i64> = Default::default();
+            let mut listed = store.list(Some(&dir));
+            while let Some(meta) = listed.next().await {
+                let meta = meta.map_err(remote)?;
+                let Some(id) = meta.location.as_ref().strip_prefix(&under).and_then(|r| r.split('/').next()) else {
+                    continue;
+                };
+                let at = meta.last_modified.timestamp_millis();
+                let e = newest.entry(id.to_string()).or_insert(at);
+                *e = (*e).max(at);
+            }
+            let cutoff = super::model::now_ms() - i64::try_from(age.as_millis()).unwrap_or(i64::MAX);
+            Ok(newest.into_iter().filter(|&(_, at)| at < cutoff).map(|(id, _)| id).collect())
+        })
+    }
+
+    /// A SigV4 query-signed GET whose `response-content-type` and
+    /// `response-content-disposition` (signed with it) make the bucket
+    /// answer with the artifact's media type and file name.
+    fn presigned_get(
+        &self,
+        key: &str,
+        filename: &str,
+        media_type: &str,
+        expires: std::time::Duration,
+    ) -> Result<Option<String>, ArtifactError> {
+        use object_store::signer::{Method, SignedUrlOptions, Signer};
+        let (signer, path) = (self.signer.clone(), self.path(key));
+        let opts = SignedUrlOptions::default().with_query([
+            ("response-content-type", media_type.to_string()),
+            ("response-content-disposition", format!("attachment; filename=\"{filename}\"")),
+        ]);
+        self.run(async move {
+            let url = signer.signed_url_opts(Method::GET, &path, expires, &opts).await.map_err(remote)?;
+            Ok(Some(url.to_string()))
+        })
+    }
+
     fn probe(&self) -> Result<(), ArtifactError> {
         let (store, path) = (self.store.clone(), self.path(&format!("tmp/probe-{}", uuid::Uuid::new_v4().simple())));
         self.run(async move {
@@ -325,6 +402,23 @@ mod tests {
         // .ci/services.sh exports AWS_ENDPOINT_URL and the credentials beside it.
         let bucket = std::env::var("MESHATLAS_TEST_S3_BUCKET").unwrap_or_else(|_| "meshatlas".into());
         Some(S3Artifacts::connect(&bucket, &format!("t_{}", uuid::Uuid::new_v4().simple())).unwrap())
+    }
+
+    #[test]
+    fn job_directories_are_listed_once_with_their_age() {
+        let Some(s3) = test_bucket() else { return };
+        let dir = tempfile::tempdir().unwrap();
+        for key in ["jobs/a/input/x.stl", "jobs/a/out/1/mesh.msh", "jobs/b/input/y.stl", "tmp/probe"] {
+            let file = dir.path().join(key);
+            std::fs::create_dir_all(file.parent().unwrap()).unwrap();
+            std::fs::write(&file, key).unwrap();
+            s3.put(dir.path(), key).unwrap();
+        }
+        // Written just now; S3 keeps `last_modified` to the second.
+        std::thread::sleep(std::time::Duration::from_millis(1100));
+        assert_eq!(s3.job_dirs_older_than(std::time::Duration::ZERO).unwrap(), ["a", "b"]);
+        assert!(s3.job_dirs_older_than(std::time::Duration::from_secs(3600)).unwrap().is_empty());
+        assert!(LocalArtifacts.job_dirs_older_than(std::time::Duration::ZERO).unwrap().is_empty());
     }
 
     #[test]

@@ -3,9 +3,11 @@
 //!
 //! Gauges (`meshatlas_jobs{state}`, `meshatlas_queue_depth`,
 //! `meshatlas_workers_busy`) are read from the store when scraped, so they
-//! survive restarts. Counters and histograms (`meshatlas_jobs_finished_total`,
-//! `meshatlas_stage_duration_seconds`, `meshatlas_job_duration_seconds`) live
-//! in memory and restart at zero, as Prometheus counters may.
+//! survive restarts; `meshatlas_heartbeat_age_seconds` from the jobs this
+//! process runs. Counters and histograms (`meshatlas_jobs_finished_total`,
+//! `meshatlas_stage_duration_seconds`, `meshatlas_job_duration_seconds`,
+//! `meshatlas_heartbeat_write_seconds`) live in memory and restart at zero,
+//! as Prometheus counters may.
 
 use std::collections::BTreeMap;
 use std::fmt::Write as _;
@@ -71,6 +73,8 @@ struct Counters {
     panics: u64,
     claims: u64,
     leases_expired: u64,
+    /// Wall seconds of each heartbeat write of this process.
+    heartbeat: Histogram,
 }
 
 /// Values read from the store at scrape time.
@@ -84,6 +88,10 @@ pub struct Gauges {
     pub workers_busy: u64,
     /// Configured number of workers.
     pub workers: u64,
+    /// Seconds since the oldest last heartbeat among the jobs this process
+    /// runs (0 when it runs none): near the heartbeat interval when healthy,
+    /// near the lease when the store is slow to take heartbeats.
+    pub heartbeat_age_seconds: f64,
 }
 
 /// Escapes a Prometheus label value.
@@ -115,6 +123,11 @@ impl Metrics {
     /// Records a job claimed by this process.
     pub fn job_claimed(&self) {
         self.lock().claims += 1;
+    }
+
+    /// Records one heartbeat write that took `seconds`.
+    pub fn heartbeat_written(&self, seconds: f64) {
+        self.lock().heartbeat.observe(seconds);
     }
 
     /// Records `n` jobs this process took back after their lease expired.
@@ -166,6 +179,16 @@ impl Metrics {
         );
         c.job.render(&mut out, "meshatlas_job_duration_seconds", "");
         out.push_str(
+            "# HELP meshatlas_heartbeat_age_seconds Seconds since the oldest last heartbeat of the jobs this \
+             process runs.\n# TYPE meshatlas_heartbeat_age_seconds gauge\n",
+        );
+        let _ = writeln!(out, "meshatlas_heartbeat_age_seconds {}", g.heartbeat_age_seconds);
+        out.push_str(
+            "# HELP meshatlas_heartbeat_write_seconds Wall time of this process's heartbeat writes to the store.\n\
+             # TYPE meshatlas_heartbeat_write_seconds histogram\n",
+        );
+        c.heartbeat.render(&mut out, "meshatlas_heartbeat_write_seconds", "");
+        out.push_str(
             "# HELP meshatlas_stage_duration_seconds Wall time per pipeline stage.\n\
              # TYPE meshatlas_stage_duration_seconds histogram\n",
         );
@@ -197,5 +220,9 @@ mod tests {
         assert!(text.contains("meshatlas_job_duration_seconds_bucket{le=\"0.01\"} 1\n"));
         assert!(text.contains("meshatlas_job_duration_seconds_count 2\n"));
         assert!(text.contains("meshatlas_jobs{state=\"queued\"} 0\n"));
+        m.heartbeat_written(0.003);
+        let text = m.render(&Gauges { heartbeat_age_seconds: 1.5, ..Default::default() });
+        assert!(text.contains("meshatlas_heartbeat_age_seconds 1.5\n"), "{text}");
+        assert!(text.contains("meshatlas_heartbeat_write_seconds_bucket{le=\"0.01\"} 1\n"), "{text}");
     }
 }

@@ -223,6 +223,11 @@ fn lock<T>(m: &Mutex<T>) -> MutexGuard<'_, T> {
 }
 
 impl RunningJob {
+    /// Seconds since its last heartbeat was written (or since it started).
+    pub fn since_last_beat(&self) -> f64 {
+        lock(&self.last_beat).elapsed().as_secs_f64()
+    }
+
     fn new(lease: Lease, timeout: Duration, memory_estimate: u64, alone: bool) -> Self {
         let now = Instant::now();
         Self {
@@ -348,7 +353,10 @@ pub(crate) fn heartbeat_loop(inner: Arc<Inner>) {
 
 /// One heartbeat of `job`, acting on what it learns.
 fn beat(inner: &Inner, job: &RunningJob, row: Option<&ProgressRow>) {
-    match inner.store.heartbeat(&job.lease, inner.config.lease, row) {
+    let start = Instant::now();
+    let written = inner.store.heartbeat(&job.lease, inner.config.lease, row);
+    inner.metrics.heartbeat_written(start.elapsed().as_secs_f64());
+    match written {
         Ok(Heartbeat::Held { cancel_requested }) => {
             *lock(&job.last_beat) = Instant::now();
             if cancel_requested && job.reason().is_none() {

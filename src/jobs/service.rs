@@ -9,6 +9,7 @@ use std::time::{Duration, Instant};
 
 use tracing::{info, warn};
 
+use super::artifact_store::ArtifactStore;
 use super::executor::Executor;
 use super::metrics::{Gauges, Metrics};
 use super::model::{JobId, JobPage, JobRecord, JobState, NewJob};
@@ -20,6 +21,17 @@ use super::worker_name::WorkerName;
 /// may still belong to a submission in progress on another process sharing
 /// the data directory, so start-up cleaning leaves it.
 const IN_FLIGHT_AGE: Duration = Duration::from_secs(600);
+/// Lifetime of a presigned artifact URL (`?redirect=1`), seconds.
+pub const PRESIGNED_URL_SECS: u64 = 300;
+
+/// The artifact `name` a finished job lists: the job's attempt count, the
+/// artifact and its key in the artifact store.
+fn listed_artifact(inner: &Inner, id: JobId, name: String) -> Result<(u32, super::model::Artifact, String), JobsError> {
+    let rec = inner.store.get(id)?.ok_or(JobsError::NotFound(id))?;
+    let art = rec.artifacts.iter().find(|a| a.name == name).cloned().ok_or(JobsError::ArtifactNotFound { id, name })?;
+    let key = format!("{}/{}", JobsConfig::attempt_key(id, rec.attempts), art.name);
+    Ok((rec.attempts, art, key))
+}
 
 /// How long cancel and delete wait for a running job to stop before they
 /// answer that the stop is pending (the stages check for cancellation
@@ -147,6 +159,7 @@ impl JobService {
             );
         }
         remove_orphans(&*store, &jobs_dir)?;
+        remove_orphan_objects(&*store, &*artifacts, IN_FLIGHT_AGE);
         let workers = config.workers.max(1);
         let threads = pool_threads(config.threads, workers);
         let pool = rayon::ThreadPoolBuilder::new()
@@ -484,19 +497,27 @@ impl JobService {
     /// [`JobsError::NotFound`], [`JobsError::ArtifactNotFound`] or storage errors.
     pub async fn artifact(&self, id: JobId, name: String) -> Result<(PathBuf, super::model::Artifact), JobsError> {
         self.blocking(move |inner| {
-            let rec = inner.store.get(id)?.ok_or(JobsError::NotFound(id))?;
-            let art = rec
-                .artifacts
-                .iter()
-                .find(|a| a.name == name)
-                .cloned()
-                .ok_or(JobsError::ArtifactNotFound { id, name })?;
+            let (attempts, art, key) = listed_artifact(inner, id, name)?;
             // With S3, fetched into this machine's data directory on first use, then served as a file.
-            let key = format!("{}/{}", JobsConfig::attempt_key(id, rec.attempts), art.name);
             if !inner.artifacts.is_local() && !inner.artifacts.fetch(&inner.config.data_dir, &key)? {
                 return Err(JobsError::Internal(format!("artifact {key} is missing from the artifact store")));
             }
-            Ok((inner.config.artifact_path(id, rec.attempts, &art.name), art))
+            Ok((inner.config.artifact_path(id, attempts, &art.name), art))
+        })
+        .await
+    }
+
+    /// A presigned URL of a finished job's artifact, valid for
+    /// [`PRESIGNED_URL_SECS`], or `None` when the artifact store has no URLs
+    /// (the data directory: the API serves the file).
+    ///
+    /// # Errors
+    /// [`JobsError::NotFound`], [`JobsError::ArtifactNotFound`] or storage errors.
+    pub async fn artifact_url(&self, id: JobId, name: String) -> Result<Option<String>, JobsError> {
+        self.blocking(move |inner| {
+            let (_, art, key) = listed_artifact(inner, id, name)?;
+            let expires = std::time::Duration::from_secs(PRESIGNED_URL_SECS);
+            Ok(inner.artifacts.presigned_get(&key, &art.name, &art.media_type, expires)?)
         })
         .await
     }
@@ -508,10 +529,16 @@ impl JobService {
     pub async fn metrics_text(&self) -> Result<String, JobsError> {
         self.blocking(|inner| {
             let jobs_by_state = inner.store.count_by_state()?;
+            // One lock of the running jobs (a second one in this expression would deadlock).
+            let (workers_busy, heartbeat_age_seconds) = {
+                let running = inner.running();
+                (running.len() as u64, running.values().map(|j| j.since_last_beat()).fold(0.0, f64::max))
+            };
             let g = Gauges {
                 queue_depth: jobs_by_state.get(&JobState::Queued).copied().unwrap_or(0),
                 jobs_by_state,
-                workers_busy: inner.running().len() as u64,
+                workers_busy,
+                heartbeat_age_seconds,
                 workers: if inner.config.run_jobs { inner.config.workers as u64 } else { 0 },
             };
             Ok(inner.metrics.render(&g))
@@ -700,6 +727,28 @@ fn remove_old_entries(dir: &std::path::Path, age: Duration, pick: impl Fn(&str) 
     Ok(())
 }
 
+/// Removes the objects of job directories in the artifact store that no
+/// record names and that nothing has written to for `age` (an upload whose
+/// API died between the bucket and the row). A younger one may be a
+/// submission in flight on another API. Failures are logged: the sweep runs
+/// again at the next start.
+fn remove_orphan_objects(store: &dyn JobStore, artifacts: &dyn ArtifactStore, age: Duration) {
+    let swept = (|| -> Result<usize, JobsError> {
+        let known: std::collections::HashSet<String> = store.all_ids()?.into_iter().collect();
+        let orphans: Vec<String> =
+            artifacts.job_dirs_older_than(age)?.into_iter().filter(|id| !known.contains(id)).collect();
+        for id in &orphans {
+            artifacts.delete_prefix(&format!("jobs/{id}/"), None)?;
+        }
+        Ok(orphans.len())
+    })();
+    match swept {
+        Ok(0) => {}
+        Ok(n) => info!(orphans = n, "removed artifact-store objects of jobs without a record"),
+        Err(e) => warn!(error = %e, "cannot sweep the artifact store for orphaned objects"),
+    }
+}
+
 /// Removes job directories with no record (a crash between file and row)
 /// once they are older than [`IN_FLIGHT_AGE`]: a younger one may be a
 /// submission another process is making.
@@ -707,4 +756,62 @@ fn remove_orphans(store: &dyn JobStore, jobs_dir: &std::path::Path) -> Result<()
     let known: std::collections::HashSet<String> = store.all_ids()?.into_iter().collect();
     remove_old_entries(jobs_dir, IN_FLIGHT_AGE, |name| !known.contains(name))
         .map_err(io_err(format!("cannot read {}", jobs_dir.display())))
+}
+
+#[cfg(test)]
+mod orphan_tests {
+    use std::path::Path;
+
+    use super::super::artifact_store::ArtifactError;
+    use super::super::sqlite_store::SqliteStore;
+    use super::*;
+
+    /// An artifact store that lists fixed job directories and records deletions.
+    struct Listed {
+        dirs: Vec<String>,
+        deleted: Mutex<Vec<String>>,
+    }
+
+    impl ArtifactStore for Listed {
+        fn put(&self, _: &Path, _: &str) -> Result<(), ArtifactError> {
+            Ok(())
+        }
+        fn fetch(&self, _: &Path, _: &str) -> Result<bool, ArtifactError> {
+            Ok(false)
+        }
+        fn delete_prefix(&self, prefix: &str, _: Option<&str>) -> Result<(), ArtifactError> {
+            self.deleted.lock().unwrap().push(prefix.to_string());
+            Ok(())
+        }
+        fn is_local(&self) -> bool {
+            false
+        }
+        fn probe(&self) -> Result<(), ArtifactError> {
+            Ok(())
+        }
+        fn job_dirs_older_than(&self, _: Duration) -> Result<Vec<String>, ArtifactError> {
+            Ok(self.dirs.clone())
+        }
+    }
+
+    #[test]
+    fn only_objects_of_jobs_without_a_record_are_swept() {
+        let store = SqliteStore::open_in_memory().unwrap();
+        let params = serde_json::json!({});
+        let known = JobId::random();
+        let row = NewRow {
+            id: known,
+            input_name: "a.stl",
+            input_bytes: 1,
+            format: Some("stl"),
+            params: &params,
+            memory_estimate_bytes: 1,
+            tenant: None,
+        };
+        store.insert_queued(&row, 10).unwrap().unwrap();
+        let orphan = JobId::random();
+        let artifacts = Listed { dirs: vec![known.to_string(), orphan.to_string()], deleted: Mutex::default() };
+        remove_orphan_objects(&store, &artifacts, IN_FLIGHT_AGE);
+        assert_eq!(*artifacts.deleted.lock().unwrap(), [format!("jobs/{orphan}/")]);
+    }
 }

@@ -190,6 +190,37 @@ async fn a_worker_with_a_small_budget_leaves_a_large_job_to_a_larger_one(c: Clus
     assert_eq!(large.metric(&c.client, "meshatlas_claims_total").await, 1.0);
 }
 
+async fn redirect_one_hands_out_a_presigned_url_with_s3_and_the_file_without(c: Cluster) {
+    let (api, worker) = (c.api(&[]), c.worker(&[]));
+    let id = c.submit(&api).await;
+    let j = c.wait_for(&api, &id, is_final).await;
+    assert_eq!(j["state"], "succeeded", "{j:#}");
+    // The worker timed its heartbeat writes (progress goes out through them).
+    assert!(worker.metric(&c.client, "meshatlas_heartbeat_write_seconds_count").await > 0.0);
+    assert_eq!(worker.metric(&c.client, "meshatlas_heartbeat_age_seconds").await, 0.0, "it runs nothing now");
+    let url = format!("{}/v1/jobs/{id}/artifacts/mesh.vtu", api.base);
+    let direct = c.client.get(&url).send().await.unwrap().bytes().await.unwrap();
+    let no_follow = reqwest::Client::builder().redirect(reqwest::redirect::Policy::none()).build().unwrap();
+    let r = no_follow.get(format!("{url}?redirect=1")).send().await.unwrap();
+    if c.artifacts == Artifacts::S3 {
+        assert_eq!(r.status(), 307);
+        assert_eq!(r.headers()["cache-control"], "no-store");
+        let location = r.headers()["location"].to_str().unwrap().to_string();
+        assert!(location.contains("X-Amz-Signature="), "{location}");
+        // The bucket itself answers, without the API's token or cookies.
+        let got = reqwest::get(&location).await.unwrap();
+        assert_eq!(got.status(), 200, "{location}");
+        assert_eq!(got.headers()["content-type"], "application/vnd.vtk.vtu+xml");
+        assert_eq!(got.headers()["content-disposition"], "attachment; filename=\"mesh.vtu\"");
+        assert_eq!(got.bytes().await.unwrap(), direct);
+    } else {
+        assert_eq!(r.status(), 200, "no URL of its own: the file is served");
+        assert_eq!(r.bytes().await.unwrap(), direct);
+    }
+    let bad = c.client.get(format!("{url}?redirect=yes")).send().await.unwrap();
+    assert_eq!(bad.status(), 400);
+}
+
 /// Each scenario twice: artifacts in one shared data directory, and in an
 /// S3 bucket with a data directory per process.
 macro_rules! on_both_artifact_stores {
@@ -222,4 +253,5 @@ on_both_artifact_stores!(
     cancel_and_delete_through_one_api_stop_a_job_running_behind_another,
     restarting_every_process_at_once_loses_no_job_and_finishes_each_once,
     a_worker_with_a_small_budget_leaves_a_large_job_to_a_larger_one,
+    redirect_one_hands_out_a_presigned_url_with_s3_and_the_file_without,
 );
