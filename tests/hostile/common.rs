@@ -16,6 +16,34 @@ pub fn shared_data(rel: &str) -> PathBuf {
     Path::new(env!("CARGO_MANIFEST_DIR")).join("../shared/data").join(rel)
 }
 
+/// The job and artifact stores of the test matrix for a server on
+/// `data_dir`: with `MESHATLAS_TEST_MATRIX=postgres` (run by hand beside
+/// `.ci/services.sh`'s servers; not yet in `.ci/run`, see
+/// `docs/decisions.md`), `--store` a fresh PostgreSQL database and
+/// `--artifacts` a fresh prefix of the S3 test bucket, the same pair again
+/// for a server restarted on the same directory; otherwise none (the
+/// embedded default). Nothing when `extra` names its own store.
+fn matrix_args(data_dir: &Path, extra: &[&str]) -> Vec<String> {
+    use std::collections::HashMap;
+    use std::sync::{Mutex, OnceLock};
+    static STORES: OnceLock<Mutex<HashMap<PathBuf, Vec<String>>>> = OnceLock::new();
+    if std::env::var("MESHATLAS_TEST_MATRIX").as_deref() != Ok("postgres") || extra.contains(&"--store") {
+        return Vec::new();
+    }
+    let mut stores = STORES.get_or_init(Default::default).lock().unwrap_or_else(|p| p.into_inner());
+    stores
+        .entry(data_dir.to_path_buf())
+        .or_insert_with(|| {
+            let admin =
+                std::env::var("MESHATLAS_TEST_PG_URL").expect("the PostgreSQL matrix needs MESHATLAS_TEST_PG_URL");
+            let bucket = std::env::var("MESHATLAS_TEST_S3_BUCKET").expect("the PostgreSQL matrix needs the S3 bucket");
+            let db = meshatlas::jobs::pg_store::create_test_database(&admin);
+            let artifacts = format!("s3://{bucket}/t_{}", uuid::Uuid::new_v4().simple());
+            vec!["--store".into(), db, "--artifacts".into(), artifacts]
+        })
+        .clone()
+}
+
 /// A `meshatlas serve` child on `127.0.0.1:0`; killed (SIGKILL) on drop.
 pub struct Server {
     pub child: Child,
@@ -62,6 +90,7 @@ impl Server {
         cmd.args(["serve", "--addr", "127.0.0.1:0"])
             .arg("--data-dir")
             .arg(data_dir)
+            .args(matrix_args(data_dir, extra))
             .args(extra)
             .env("MESHATLAS_LOG", "info")
             .stdout(Stdio::piped())
@@ -268,6 +297,7 @@ impl Server {
             .args(["serve", "--addr", "127.0.0.1:0"])
             .arg("--data-dir")
             .arg(&dir)
+            .args(matrix_args(&dir, extra))
             .args(extra)
             .env("MESHATLAS_LOG", "info")
             .stdout(Stdio::piped())
