@@ -16,8 +16,9 @@
 //! installs all three). With `CI` set a missing tool fails the test;
 //! otherwise the test is skipped with the reason printed.
 
+mod common;
+
 use std::collections::HashMap;
-use std::io::{BufRead, BufReader};
 use std::path::{Path, PathBuf};
 use std::process::{Child, Command, Stdio};
 use std::time::{Duration, Instant};
@@ -52,7 +53,6 @@ impl Server {
     /// only one (`--auth-tokens`).
     fn start(token: Option<&str>) -> Server {
         let dir = tempfile::tempdir().unwrap();
-        let log = std::fs::File::create(dir.path().join("server.log")).unwrap();
         let mut cmd = Command::new(env!("CARGO_BIN_EXE_meshatlas"));
         cmd.args(["serve", "--addr", "127.0.0.1:0", "--workers", "1"]);
         if let Some(t) = token {
@@ -60,26 +60,10 @@ impl Server {
             std::fs::write(&tokens, format!("{t} browser\n")).unwrap();
             cmd.arg("--auth-tokens").arg(tokens);
         }
-        let mut child = cmd
-            .arg("--data-dir")
-            .arg(dir.path().join("data"))
-            .env("MESHATLAS_LOG", "warn")
-            .stdout(Stdio::piped())
-            .stderr(log)
-            .spawn()
-            .expect("start meshatlas serve");
-        let mut line = String::new();
-        let _ = BufReader::new(child.stdout.take().unwrap()).read_line(&mut line);
-        let addr = line.trim().strip_prefix("listening on ").map(str::to_string);
-        let Some(addr) = addr else {
-            let _ = child.kill();
-            panic!(
-                "meshatlas serve did not start: {}",
-                std::fs::read_to_string(dir.path().join("server.log")).unwrap()
-            );
-        };
+        cmd.arg("--data-dir").arg(dir.path().join("data")).env("MESHATLAS_LOG", "warn");
+        let (child, base) = common::spawn_listening_logged(cmd, &dir.path().join("server.log"));
         let client = reqwest::Client::builder().no_gzip().build().unwrap();
-        Server { child, base: format!("http://{addr}"), dir, client, token: token.map(str::to_string) }
+        Server { child, base, dir, client, token: token.map(str::to_string) }
     }
 
     fn url(&self, path: &str) -> String {

@@ -13,9 +13,10 @@
 //! `schemathesis.toml` beside it accepts the documented 416 for a valid
 //! `Range` past the end of an artifact (only the server knows the length).
 
-use std::io::{BufRead, BufReader};
+mod common;
+
 use std::path::Path;
-use std::process::{Child, Command, Stdio};
+use std::process::{Child, Command};
 
 /// Bearer token of the one tenant of the run (≥ 16 characters).
 const TOKEN: &str = "schemathesis-token-0123456789";
@@ -42,9 +43,8 @@ impl Drop for Server {
 fn start_server(dir: &Path) -> Server {
     let tokens = dir.join("tokens.txt");
     std::fs::write(&tokens, format!("{TOKEN} schemathesis\n")).unwrap();
-    let log = std::fs::File::create(dir.join("server.log")).unwrap();
-    let mut child = Command::new(env!("CARGO_BIN_EXE_meshatlas"))
-        .args(["serve", "--addr", "127.0.0.1:0", "--workers", "1", "--threads", "1"])
+    let mut cmd = Command::new(env!("CARGO_BIN_EXE_meshatlas"));
+    cmd.args(["serve", "--addr", "127.0.0.1:0", "--workers", "1", "--threads", "1"])
         // Keep-alive idle time (the header timeout) longer than any pause of the
         // client between two requests on a pooled connection: see docs/decisions.md.
         .args(["--header-timeout-secs", "120"])
@@ -52,22 +52,9 @@ fn start_server(dir: &Path) -> Server {
         .arg(dir.join("data"))
         .arg("--auth-tokens")
         .arg(&tokens)
-        .env("MESHATLAS_LOG", "warn")
-        .stdout(Stdio::piped())
-        .stderr(log)
-        .spawn()
-        .expect("start meshatlas serve");
-    let mut line = String::new();
-    let _ = BufReader::new(child.stdout.take().unwrap()).read_line(&mut line);
-    let addr = line.trim().strip_prefix("listening on ").map(str::to_string);
-    let Some(addr) = addr else {
-        let _ = child.kill();
-        panic!(
-            "meshatlas serve did not start: {}",
-            std::fs::read_to_string(dir.join("server.log")).unwrap_or_default()
-        );
-    };
-    Server { child, base: format!("http://{addr}") }
+        .env("MESHATLAS_LOG", "warn");
+    let (child, base) = common::spawn_listening_logged(cmd, &dir.join("server.log"));
+    Server { child, base }
 }
 
 /// The `API Links: N covered` count of the stateful phase's summary.

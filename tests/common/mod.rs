@@ -44,6 +44,21 @@ pub fn spawn_listening(mut cmd: Command) -> (std::process::Child, String) {
     (child, base)
 }
 
+/// Like [`spawn_listening`], with the child's stderr going to the file
+/// `log`, which a failed start prints (the reason the server gave).
+pub fn spawn_listening_logged(mut cmd: Command, log: &Path) -> (std::process::Child, String) {
+    use std::io::BufRead;
+    let file = std::fs::File::create(log).expect("create the server log");
+    let mut child = cmd.stdout(std::process::Stdio::piped()).stderr(file).spawn().expect("start meshatlas");
+    let mut line = String::new();
+    let _ = std::io::BufReader::new(child.stdout.take().expect("piped stdout")).read_line(&mut line);
+    let Some(addr) = line.trim().strip_prefix("listening on ").map(str::to_string) else {
+        let _ = child.kill();
+        panic!("meshatlas serve did not start: {}", std::fs::read_to_string(log).unwrap_or_default());
+    };
+    (child, format!("http://{addr}"))
+}
+
 /// A fresh directory `<target tmp>/<suite>/<name>` for one test's files.
 pub fn scratch(suite: &str, name: &str) -> PathBuf {
     let dir = Path::new(env!("CARGO_TARGET_TMPDIR")).join(suite).join(name);
