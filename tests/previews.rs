@@ -82,16 +82,20 @@ fn crossfield_singularities_of_the_sphere_land_on_dots_of_their_index_colour() {
     let sphere = fixtures::icosphere(3);
     let topo = Topology::new(&sphere);
     let features = detect_features(&sphere, &topo, 40.0);
-    let field =
-        compute_crossfield(&sphere, &topo, &features.is_feature_edge, &CrossfieldOptions::default(), &Progress::none())
-            .expect("crossfield");
-    assert_eq!(field.singularities.len(), 8, "the sphere's crossfield has 8 index-1/4 singularities");
-    let img = crossfield_preview(&sphere, &field, SIZE).expect("crossfield preview");
     let framing = Framing::fit(&sphere.positions, SIZE).unwrap();
-    for s in &field.singularities {
-        let want = index_color(s.index);
-        let seen = (0..2).any(|k| pixel(&framing, k, &s.position).is_some_and(|(x, y)| img.pixel(x, y) == want));
-        assert!(seen, "singularity at {:?} (index {}) is not on a dot of colour {want:?}", s.position, s.index);
+    // Crosses: 8 singularities of index +1/4; asterisks: 12 of +1/6 (both the valence-3 colour).
+    for (symmetry, count) in [(4, 8), (6, 12)] {
+        let opts = CrossfieldOptions { symmetry, ..Default::default() };
+        let field = compute_crossfield(&sphere, &topo, &features.is_feature_edge, &opts, &Progress::none())
+            .expect("crossfield");
+        assert_eq!(field.singularities.len(), count, "symmetry {symmetry}");
+        let img = crossfield_preview(&sphere, &field, SIZE).expect("crossfield preview");
+        for s in &field.singularities {
+            let want = index_color(s.index, field.symmetry);
+            assert_eq!(want, meshatlas::preview::palette::POSITIVE);
+            let seen = (0..2).any(|k| pixel(&framing, k, &s.position).is_some_and(|(x, y)| img.pixel(x, y) == want));
+            assert!(seen, "singularity at {:?} (index {}) is not on a dot of colour {want:?}", s.position, s.index);
+        }
     }
 }
 

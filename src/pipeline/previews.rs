@@ -43,7 +43,7 @@ impl Previews {
         }
         let start = Instant::now();
         let written = render(output.preview_size).and_then(|img| write_png(&img, out_dir, syncer, name));
-        self.record(name, start, written.map_err(|e| e.to_string()));
+        self.record(out_dir, name, start, written.map_err(|e| e.to_string()));
     }
 
     /// Writes `out_dir/name` with `write` (a look artifact such as
@@ -68,11 +68,12 @@ impl Previews {
             let file = w.into_inner().map_err(|e| e.into_error())?;
             Ok(syncer.sync(path.clone(), file)?)
         })();
-        self.record(name, start, written.map_err(|e| e.to_string()));
+        self.record(out_dir, name, start, written.map_err(|e| e.to_string()));
     }
 
-    /// Records the outcome of artifact `name`, begun at `start`.
-    fn record(&mut self, name: &str, start: Instant, written: Result<(), String>) {
+    /// Records the outcome of artifact `name`, begun at `start`; a failed
+    /// one's partial file is removed (the job lists only what it wrote).
+    fn record(&mut self, out_dir: &Path, name: &str, start: Instant, written: Result<(), String>) {
         let seconds = start.elapsed().as_secs_f64();
         self.seconds += seconds;
         let error = match written {
@@ -82,6 +83,7 @@ impl Previews {
             }
             Err(e) => {
                 tracing::warn!(artifact = name, error = %e, "look artifact not written");
+                let _ = std::fs::remove_file(out_dir.join(name));
                 Some(e)
             }
         };
@@ -110,6 +112,10 @@ mod tests {
         let output = OutputOptions::default();
         let mut previews = Previews::default();
         previews.draw(&output, dir.path(), &syncer, "empty.png", |_| Err(PreviewError::Empty));
+        previews.write(&output, dir.path(), &syncer, "half.glb", |w| {
+            std::io::Write::write_all(w, b"glTF")?;
+            Err(WriteError::Invalid("stopped half-way".into()))
+        });
         let missing = dir.path().join("no-such-dir");
         previews.write(&output, &missing, &syncer, "surface.glb", |_| Ok(()));
         previews.draw(&output, dir.path(), &syncer, "ok.png", |_| {
@@ -119,9 +125,11 @@ mod tests {
         assert_eq!(previews.artifacts, ["ok.png"]);
         let errors: Vec<Option<&str>> = previews.outcomes.iter().map(|o| o.error.as_deref()).collect();
         assert!(errors[0].is_some_and(|e| e.contains("no triangles")), "{errors:?}");
-        assert!(errors[1].is_some_and(|e| e.contains("No such file")), "{errors:?}");
-        assert_eq!(errors[2], None);
+        assert!(errors[1].is_some_and(|e| e.contains("half-way")), "{errors:?}");
+        assert!(errors[2].is_some_and(|e| e.contains("No such file")), "{errors:?}");
+        assert_eq!(errors[3], None);
         assert!(!dir.path().join("empty.png").exists());
+        assert!(!dir.path().join("half.glb").exists(), "a failed artifact leaves no partial file");
         assert!(dir.path().join("ok.png").metadata().unwrap().len() > 8);
     }
 

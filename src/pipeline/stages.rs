@@ -134,8 +134,11 @@ pub fn run_crossfield(
     previews.draw(&params.output, out_dir, syncer, "crossfield.png", |size| {
         preview::crossfield_preview(surface, &field, size)
     });
-    products.singular_points =
-        field.singularities.iter().map(|s| (s.position, preview::palette::index_color(s.index))).collect();
+    products.singular_points = field
+        .singularities
+        .iter()
+        .map(|s| (s.position, preview::palette::index_color(s.index, field.symmetry)))
+        .collect();
     let report = StageReport::Crossfield(Box::new(field.report.clone()));
     if params.stages_to_run().0.contains(&StageName::Quads) {
         products.crossfield = Some(field);

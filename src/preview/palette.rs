@@ -19,10 +19,10 @@ pub const PATCH_PALETTE: [[u8; 3]; 12] = [
     [170, 220, 120],
 ];
 
-/// Colour of a crossfield singularity of index `+1/4` and a frame
+/// Colour of a crossfield singularity of index `+1/n` and a frame
 /// singular edge (or quad vertex) of valence 3.
 pub const POSITIVE: [u8; 3] = [30, 90, 230];
-/// Colour of index `−1/4` and valence 5.
+/// Colour of index `−1/n` and valence 5.
 pub const NEGATIVE: [u8; 3] = [220, 30, 30];
 /// Colour of every other index or valence.
 pub const OTHER: [u8; 3] = [20, 170, 60];
@@ -92,11 +92,14 @@ pub fn color_patches(neighbours: &[Vec<u32>]) -> Vec<usize> {
     color
 }
 
-/// The colour of a crossfield singularity of `index` (a fraction of a turn).
-pub fn index_color(index: f64) -> [u8; 3] {
-    if (index - 0.25).abs() < 1e-6 {
+/// The colour of a singularity of `index` (a fraction of a turn) of an
+/// `n`-symmetric field: `+1/n` (valence 3 for crosses), `−1/n` (valence
+/// 5), or another index.
+pub fn index_color(index: f64, n: u32) -> [u8; 3] {
+    let unit = 1.0 / f64::from(n.max(1));
+    if (index - unit).abs() < 1e-6 {
         POSITIVE
-    } else if (index + 0.25).abs() < 1e-6 {
+    } else if (index + unit).abs() < 1e-6 {
         NEGATIVE
     } else {
         OTHER

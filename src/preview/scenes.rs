@@ -231,22 +231,18 @@ pub fn crossfield_preview(surface: &TriMesh, field: &Crossfield, size: PreviewSi
         c.outline(framing.outline_jump);
         draw_crosses(c, view, surface, field, framing.bias);
         for s in &field.singularities {
-            c.dot(view.project(&s.position), 6.0, index_color(s.index), 2.0 * framing.bias);
+            c.dot(view.project(&s.position), 6.0, index_color(s.index, field.symmetry), 2.0 * framing.bias);
         }
     });
     let symmetry = field.symmetry.max(1);
     let (plus, minus) = (format!("index +1/{symmetry}"), format!("index -1/{symmetry}"));
-    let entries: &[([u8; 3], &str)] = if symmetry == 4 {
-        &[(POSITIVE, &plus), (NEGATIVE, &minus), (OTHER, "other index")]
-    } else {
-        &[(OTHER, "singularity")]
-    };
-    legend(&mut canvas, entries);
+    legend(&mut canvas, &[(POSITIVE, &plus), (NEGATIVE, &minus), (OTHER, "other index")]);
     Ok(Image::of(&canvas))
 }
 
 /// The cross glyphs of [`crossfield_preview`] on canvas `c`: at each cell
-/// centre the face drawn there gets the two branches `u` and `n × u`.
+/// centre the face drawn there gets its field's `N` branches (`u` and
+/// `n × u` for a cross, three lines for an asterisk).
 fn draw_crosses(c: &mut Canvas, view: &View, surface: &TriMesh, field: &Crossfield, bias: f64) {
     let half = 0.36 * GLYPH_CELL as f64 / view.scale;
     let glyph = [70, 70, 95];
@@ -260,8 +256,12 @@ fn draw_crosses(c: &mut Canvas, view: &View, surface: &TriMesh, field: &Crossfie
             let centroid = (t[0] + t[1] + t[2]) / 3.0;
             let n = (t[1] - t[0]).cross(&(t[2] - t[0]));
             let (Some(u), Some(n)) = (field.cross_per_face.get(f as usize), n.try_normalize(0.0)) else { continue };
-            let arms = if field.symmetry == 4 { vec![*u, n.cross(u)] } else { vec![*u] };
-            for arm in arms {
+            // The N-fold glyph: N/2 lines through the centroid, 2π/N apart.
+            let v = n.cross(u);
+            let lines = (field.symmetry / 2).max(1);
+            for k in 0..lines {
+                let angle = std::f64::consts::TAU * f64::from(k) / f64::from(field.symmetry.max(1));
+                let arm = u * angle.cos() + v * angle.sin();
                 let (a, b) = (view.project(&(centroid - arm * half)), view.project(&(centroid + arm * half)));
                 c.line(a, b, 1.5, glyph, bias);
             }
