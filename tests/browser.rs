@@ -237,11 +237,25 @@ fn human_bytes(n: u64) -> String {
         v /= 1024.0;
         u += 1;
     }
-    match u {
-        0 => format!("{n} B"),
-        _ if v >= 100.0 => format!("{v:.0} {}", units[u]),
-        _ if v >= 10.0 => format!("{v:.1} {}", units[u]),
-        _ => format!("{v:.2} {}", units[u]),
+    if u == 0 {
+        return format!("{n} B");
+    }
+    let digits = if v >= 100.0 {
+        0
+    } else if v >= 10.0 {
+        1
+    } else {
+        2
+    };
+    // JavaScript's toFixed rounds an exact tie up, Rust's `{:.1}` to even
+    // (17.25 KiB: "17.3" against "17.2"), so round in integers, half up:
+    // n / 1024^u is exact, and so is this.
+    let (scale, unit) = (10u128.pow(digits), 1024u128.pow(u as u32));
+    let q = (u128::from(n) * scale * 2 + unit) / (2 * unit);
+    let (whole, frac) = (q / scale, q % scale);
+    match digits {
+        0 => format!("{whole} {}", units[u]),
+        d => format!("{whole}.{frac:0width$} {}", units[u], width = d as usize),
     }
 }
 
@@ -406,4 +420,22 @@ async fn with_tokens_the_page_asks_for_one_and_loads_previews_with_it() {
     let job = s.job(report["id"].as_str().unwrap()).await;
     assert_eq!((&job["state"], &job["input"]["name"]), (&"succeeded".into(), &"small.stl".into()));
     assert_previews_loaded(&job, &report, true);
+}
+
+#[test]
+fn sizes_are_formatted_as_the_page_formats_them() {
+    // Node's answers for the page's humanBytes, ties (17.25, 1.125) included.
+    let cases = [
+        (17664, "17.3 KiB"),
+        (1023, "1023 B"),
+        (1024, "1.00 KiB"),
+        (102400, "100 KiB"),
+        (17612, "17.2 KiB"),
+        (1029, "1.00 KiB"),
+        (5767168, "5.50 MiB"),
+        (1152, "1.13 KiB"),
+    ];
+    for (n, want) in cases {
+        assert_eq!(human_bytes(n), want, "{n} bytes");
+    }
 }
