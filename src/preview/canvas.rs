@@ -152,27 +152,41 @@ impl Canvas {
         z <= f64::from(self.depth[i]) + bias
     }
 
-    /// Calls `hit` with every pixel whose centre is within `r` of `(x, y)`.
-    fn disc_pixels(&self, x: f64, y: f64, r: f64, hit: &mut impl FnMut(usize)) {
+    /// The pixels whose centre is within `r` of `(x, y)`: an iterator that
+    /// does not borrow the canvas, so callers may write while they walk it.
+    fn disc(&self, x: f64, y: f64, r: f64) -> impl Iterator<Item = usize> + use<> {
+        let w = self.width;
         let (x0, x1) = ((x - r).floor().max(0.0) as i64, (x + r).ceil().min(self.width as f64 - 1.0) as i64);
         let (y0, y1) = ((y - r).floor().max(0.0) as i64, (y + r).ceil().min(self.height as f64 - 1.0) as i64);
-        for py in y0..=y1 {
-            for px in x0..=x1 {
-                let (dx, dy) = (px as f64 + 0.5 - x, py as f64 + 0.5 - y);
-                if dx * dx + dy * dy <= r * r {
-                    hit(py as usize * self.width + px as usize);
-                }
-            }
-        }
+        (y0..=y1).flat_map(move |py| (x0..=x1).map(move |px| (px, py))).filter_map(move |(px, py)| {
+            let (dx, dy) = (px as f64 + 0.5 - x, py as f64 + 0.5 - y);
+            (dx * dx + dy * dy <= r * r).then_some(py as usize * w + px as usize)
+        })
     }
 
     /// Sets the pixels of a disc of radius `r` around `(x, y)` to `color`.
     fn stamp(&mut self, x: f64, y: f64, r: f64, color: [u8; 3]) {
-        let mut hits = Vec::new();
-        self.disc_pixels(x, y, r, &mut |i| hits.push(i));
-        for i in hits {
+        for i in self.disc(x, y, r) {
             self.color[i] = color;
         }
+    }
+
+    /// The disc centres of the segment `a → b` (projected: pixel x, y,
+    /// depth) `width` pixels wide that are in front of the surface within
+    /// `bias` (with `bias = ∞`, all of them), and the disc radius.
+    fn line_samples(&self, a: [f64; 3], b: [f64; 3], width: f64, bias: f64) -> (Vec<(f64, f64)>, f64) {
+        let len = ((b[0] - a[0]).powi(2) + (b[1] - a[1]).powi(2)).sqrt();
+        if !len.is_finite() {
+            return (Vec::new(), 0.0);
+        }
+        let steps = (len * 2.0).ceil().max(1.0) as usize;
+        let samples = (0..=steps)
+            .map(|s| s as f64 / steps as f64)
+            .map(|t| (a[0] + t * (b[0] - a[0]), a[1] + t * (b[1] - a[1]), a[2] + t * (b[2] - a[2])))
+            .filter(|&(x, y, z)| self.visible(x, y, z, bias))
+            .map(|(x, y, _)| (x, y))
+            .collect();
+        (samples, (width / 2.0).max(0.5))
     }
 
     /// Calls `hit` with every pixel of the segment `a → b` (projected: pixel
@@ -180,27 +194,17 @@ impl Canvas {
     /// within `bias` (with `bias = ∞`, every pixel of it). A pixel may be
     /// hit more than once.
     pub fn line_pixels(&self, a: [f64; 3], b: [f64; 3], width: f64, bias: f64, mut hit: impl FnMut(usize)) {
-        let len = ((b[0] - a[0]).powi(2) + (b[1] - a[1]).powi(2)).sqrt();
-        if !len.is_finite() {
-            return;
-        }
-        let steps = (len * 2.0).ceil().max(1.0) as usize;
-        let r = (width / 2.0).max(0.5);
-        for s in 0..=steps {
-            let t = s as f64 / steps as f64;
-            let (x, y, z) = (a[0] + t * (b[0] - a[0]), a[1] + t * (b[1] - a[1]), a[2] + t * (b[2] - a[2]));
-            if self.visible(x, y, z, bias) {
-                self.disc_pixels(x, y, r, &mut hit);
-            }
+        let (samples, r) = self.line_samples(a, b, width, bias);
+        for (x, y) in samples {
+            self.disc(x, y, r).for_each(&mut hit);
         }
     }
 
     /// Draws the segment `a → b` in `color` ([`Canvas::line_pixels`]).
     pub fn line(&mut self, a: [f64; 3], b: [f64; 3], width: f64, color: [u8; 3], bias: f64) {
-        let mut hits = Vec::new();
-        self.line_pixels(a, b, width, bias, |i| hits.push(i));
-        for i in hits {
-            self.color[i] = color;
+        let (samples, r) = self.line_samples(a, b, width, bias);
+        for (x, y) in samples {
+            self.stamp(x, y, r, color);
         }
     }
 
