@@ -1,6 +1,6 @@
-//! Queue throughput and time-to-start, embedded against PostgreSQL.
+//! Queue throughput and time-to-start, embedded against PostgreSQL + S3.
 //!
-//! `cargo bench --bench queue -- [--pg URL] [--jobs N] [--large FILE]`
+//! `cargo bench --bench queue -- [--pg URL] [--s3 BUCKET] [--jobs N] [--large FILE]`
 //!
 //! A burst of N small jobs (default 200; the 80-triangle icosphere, no
 //! stage) is posted as fast as one client can, then polled to the end. For
@@ -11,7 +11,11 @@
 //! - `postgres, 1 worker` / `postgres, 3 workers`: one `serve --no-worker`
 //!   and 1 or 3 `worker` processes on a fresh database of the server at
 //!   `--pg` (or `$MESHATLAS_TEST_PG_URL`; `source .ci/services.sh &&
-//!   start_postgres` starts one), skipped without it.
+//!   start_postgres` starts one), skipped without it. With `--s3 BUCKET`
+//!   (or `$MESHATLAS_TEST_S3_BUCKET`, with the `AWS_*` variables of
+//!   `.ci/services.sh`'s `start_s3`) the artifacts go to a fresh prefix of
+//!   that bucket and every process has a data directory of its own, as on
+//!   separate machines; without it they share one data directory.
 //!
 //! With `--large FILE` one job with stages atlas and crossfield runs on the
 //! embedded default and on PostgreSQL, and the overhead of the distributed
@@ -54,6 +58,44 @@ impl Drop for Proc {
     fn drop(&mut self) {
         let _ = self.child.kill();
         let _ = self.child.wait();
+    }
+}
+
+/// The stores of one distributed configuration: a fresh database and,
+/// when a bucket is given, a fresh prefix of it.
+struct Distributed {
+    store: String,
+    artifacts: Option<String>,
+    /// The shared data directory when there is no bucket.
+    shared: tempfile::TempDir,
+    /// Per-process data directories (S3 only), kept until the end.
+    own: std::cell::RefCell<Vec<tempfile::TempDir>>,
+}
+
+impl Distributed {
+    fn new(pg: &str, bucket: Option<&str>) -> Distributed {
+        Distributed {
+            store: meshatlas::jobs::pg_store::create_test_database(pg),
+            artifacts: bucket.map(|b| format!("s3://{b}/bench_{}", uuid::Uuid::new_v4().simple())),
+            shared: tempfile::tempdir().unwrap(),
+            own: Default::default(),
+        }
+    }
+
+    /// Starts `role` (`serve --no-worker` or `worker`) on these stores.
+    fn start(&self, role: &[&str]) -> Proc {
+        let mut args: Vec<&str> = role.to_vec();
+        args.extend(["--store", &self.store]);
+        let Some(artifacts) = &self.artifacts else { return Proc::start(&args, self.shared.path()) };
+        args.extend(["--artifacts", artifacts]);
+        let dir = tempfile::tempdir().unwrap();
+        let p = Proc::start(&args, dir.path());
+        self.own.borrow_mut().push(dir);
+        p
+    }
+
+    fn label(&self) -> &'static str {
+        if self.artifacts.is_some() { "postgres+s3" } else { "postgres" }
     }
 }
 
@@ -153,6 +195,7 @@ fn main() {
     let value = |flag: &str| args.iter().position(|a| a == flag).and_then(|i| args.get(i + 1)).cloned();
     let n: usize = value("--jobs").map_or(200, |v| v.parse().expect("--jobs N"));
     let pg = value("--pg").or_else(|| std::env::var("MESHATLAS_TEST_PG_URL").ok());
+    let bucket = value("--s3").or_else(|| std::env::var("MESHATLAS_TEST_S3_BUCKET").ok());
     let large = value("--large").map(PathBuf::from);
     let rt = tokio::runtime::Builder::new_multi_thread().worker_threads(2).enable_all().build().unwrap();
     let body = small_stl();
@@ -170,25 +213,25 @@ fn main() {
         return;
     };
     for workers in [1, 3] {
-        let dir = tempfile::tempdir().unwrap();
-        let url = meshatlas::jobs::pg_store::create_test_database(&pg);
-        let api = Proc::start(&["serve", "--no-worker", "--store", &url], dir.path());
-        let _ws: Vec<Proc> = (0..workers).map(|_| Proc::start(&["worker", "--store", &url], dir.path())).collect();
-        rt.block_on(burst(&format!("postgres, {workers} worker(s)"), &api, n, &body));
+        let d = Distributed::new(&pg, bucket.as_deref());
+        let api = d.start(&["serve", "--no-worker"]);
+        let _ws: Vec<Proc> = (0..workers).map(|_| d.start(&["worker"])).collect();
+        rt.block_on(burst(&format!("{}, {workers} worker(s)", d.label()), &api, n, &body));
     }
     if let Some(file) = large {
         let dir = tempfile::tempdir().unwrap();
         let api = Proc::start(&["serve"], dir.path());
         let embedded = rt.block_on(large_job(&api, &file));
         drop(api);
-        let url = meshatlas::jobs::pg_store::create_test_database(&pg);
-        let api = Proc::start(&["serve", "--no-worker", "--store", &url], dir.path());
-        let worker = Proc::start(&["worker", "--store", &url], dir.path());
+        let d = Distributed::new(&pg, bucket.as_deref());
+        let api = d.start(&["serve", "--no-worker"]);
+        let worker = d.start(&["worker"]);
         let distributed = rt.block_on(large_job(&api, &file));
         drop(worker);
         println!(
-            "large job {}: embedded {embedded:.2} s, postgres {distributed:.2} s, overhead {:+.1} %",
+            "large job {}: embedded {embedded:.2} s, {} {distributed:.2} s, overhead {:+.1} %",
             file.display(),
+            d.label(),
             (distributed / embedded - 1.0) * 100.0
         );
     }

@@ -158,7 +158,7 @@ async fn stream_to_file<E: std::fmt::Display>(
         }
         file.write_all(&chunk).await.map_err(|e| ApiError::io("writing the upload", &e))?;
     }
-    file.sync_all().await.map_err(|e| ApiError::io("syncing the upload", &e))?;
+    crate::jobs::storage::flush_and_sync(&mut file).await.map_err(|e| ApiError::io("writing the upload", &e))?;
     Ok(())
 }
 

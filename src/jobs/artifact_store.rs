@@ -267,7 +267,7 @@ impl ArtifactStore for S3Artifacts {
                     let chunk = chunk.map_err(remote)?;
                     tokio::io::AsyncWriteExt::write_all(&mut out, &chunk).await.map_err(local_err(&part))?;
                 }
-                out.sync_all().await.map_err(local_err(&part))
+                super::storage::flush_and_sync(&mut out).await.map_err(local_err(&part))
             }
             .await;
             if let Err(e) = copied {

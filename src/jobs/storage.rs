@@ -91,6 +91,21 @@ pub struct Unrecorded {
     pub delete: bool,
 }
 
+/// Makes what was written to `file` durable, and reports a failed write.
+///
+/// Why not `sync_all` alone: a `tokio::fs::File` answers `write_all` once
+/// the bytes are handed to its background write, and keeps that write's
+/// error for the next write or `flush`; `sync_all` drops it. The last
+/// chunk's `ENOSPC` was lost that way, and a full disk accepted an upload
+/// it had not stored.
+///
+/// # Errors
+/// The first failed write, or the failed sync.
+pub async fn flush_and_sync(file: &mut tokio::fs::File) -> std::io::Result<()> {
+    tokio::io::AsyncWriteExt::flush(file).await?;
+    file.sync_all().await
+}
+
 /// Checks that the data directory takes a small file (created, written,
 /// synced and removed in `tmp/`).
 ///

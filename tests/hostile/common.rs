@@ -17,9 +17,9 @@ pub fn shared_data(rel: &str) -> PathBuf {
 }
 
 /// The job and artifact stores of the test matrix for a server on
-/// `data_dir`: with `MESHATLAS_TEST_MATRIX=postgres` (run by hand beside
-/// `.ci/services.sh`'s servers; not yet in `.ci/run`, see
-/// `docs/decisions.md`), `--store` a fresh PostgreSQL database and
+/// `data_dir`: with `MESHATLAS_TEST_MATRIX=postgres` (`.ci/run` runs the
+/// suite a second time so, beside `.ci/services.sh`'s servers), `--store`
+/// a fresh PostgreSQL database and
 /// `--artifacts` a fresh prefix of the S3 test bucket, the same pair again
 /// for a server restarted on the same directory; otherwise none (the
 /// embedded default). Nothing when `extra` names its own store.

@@ -165,6 +165,26 @@ async fn submission_on_a_full_disk_answers_507_problem_json() {
     assert_eq!(resp.status(), 202, "submission after space was freed");
 }
 
+/// An upload that arrives as one body chunk: its only write is the one
+/// that fails, and an asynchronous file reports that failure only on the
+/// next write or flush, not on `sync_all`. With the job record on another
+/// disk (PostgreSQL) nothing else fails, so a lost error was a 202 for an
+/// input that was never stored.
+#[tokio::test]
+async fn a_one_chunk_upload_on_a_full_disk_answers_507() {
+    let Some(fs) = Tmpfs::mount() else { return };
+    let s = Server::start_in(&fs.dir, &[], &[]);
+    let filler = fs.fill();
+    let stl = b"solid t\nfacet normal 0 0 1\nouter loop\nvertex 0 0 0\nvertex 1 0 0\nvertex 0 1 0\nendloop\nendfacet\nendsolid t\n";
+    let resp = s.submit_bytes("t.stl", stl.to_vec(), Some(r#"{"stages":[]}"#)).await;
+    let status = resp.status();
+    let body = resp.text().await.unwrap_or_default();
+    assert_eq!(status, 507, "{body}");
+    assert!(body.contains("urn:meshatlas:problem:insufficient-storage"), "{body}");
+    assert!(s.tmp_files().is_empty(), "upload left in tmp/: {:?}", s.tmp_files());
+    std::fs::remove_file(&filler).unwrap();
+}
+
 #[tokio::test]
 async fn healthz_is_503_while_the_store_is_full_or_read_only() {
     let Some(fs) = Tmpfs::mount() else { return };
