@@ -181,11 +181,19 @@ pub async fn submit_job(
         }
     };
     let path = st.jobs.upload_path();
-    let mut up = if is_multipart {
-        upload::receive_multipart(req.into_body(), &headers, path, limit).await?
+    let id = JobId::random();
+    let jobs = st.jobs.clone();
+    let query_name = q.filename.clone();
+    let remote =
+        move |part_name: Option<&str>| jobs.stream_input(id, &upload::input_name(part_name.or(query_name.as_deref())));
+    let received = if is_multipart {
+        upload::receive_multipart(req.into_body(), &headers, path, limit, &remote).await
     } else {
-        upload::receive_raw(req.into_body(), &headers, path, limit).await?
+        upload::receive_raw(req.into_body(), &headers, path, limit, &remote).await
     };
+    let mut up = received?;
+    // Until the submission takes it, an upload streamed into the store is removed with the refusal.
+    let stored = StoredInput { jobs: &st.jobs, id, armed: up.stored };
     if up.filename.is_none() {
         up.filename = q.filename.clone();
     }
@@ -197,13 +205,10 @@ pub async fn submit_job(
         return Err(ApiError::new(FailureKind::EmptyFile, "the uploaded mesh file is empty (0 bytes)"));
     }
     let format = upload::resolve_format(q.format.as_deref(), &up)?;
-    let input_name = up
-        .filename
-        .as_deref()
-        .map(|n| n.rsplit(['/', '\\']).next().unwrap_or(n).chars().take(200).collect::<String>())
-        .filter(|n| !n.is_empty())
-        .unwrap_or_else(|| "upload".to_string());
+    let input_name = upload::input_name(up.filename.as_deref());
     let new = NewJob {
+        id,
+        input_stored: up.stored,
         upload_path: up.path.clone(),
         input_name,
         input_bytes: up.bytes,
@@ -211,6 +216,8 @@ pub async fn submit_job(
         params,
         tenant: scope.tenant(),
     };
+    // From here on the submission removes what it refuses.
+    stored.disarm();
     let rec = match st.jobs.submit(new).await {
         Ok(rec) => {
             up.keep();
@@ -225,6 +232,30 @@ pub async fn submit_job(
         resp.headers_mut().insert(header::LOCATION, v);
     }
     Ok(resp)
+}
+
+/// Removes an upload streamed into the artifact store when the request
+/// ends before [`crate::jobs::JobService::submit`] takes it over (its
+/// parameters, format or size refused).
+struct StoredInput<'a> {
+    jobs: &'a crate::jobs::JobService,
+    id: JobId,
+    armed: bool,
+}
+
+impl StoredInput<'_> {
+    /// The submission owns the object now.
+    fn disarm(mut self) {
+        self.armed = false;
+    }
+}
+
+impl Drop for StoredInput<'_> {
+    fn drop(&mut self) {
+        if self.armed {
+            self.jobs.forget_streamed_input(self.id);
+        }
+    }
 }
 
 fn queue_full(st: &AppState) -> ApiError {

@@ -28,6 +28,7 @@ use super::error::ApiError;
 use super::multipart_framing::{FramingError, FramingGuard, MAX_PART_HEADER_BYTES, MAX_PREAMBLE_BYTES};
 use crate::failure::FailureKind;
 use crate::io::Format;
+use crate::jobs::artifact_store::StreamingPut;
 
 /// Bytes kept from the start of the upload for format sniffing.
 pub const HEAD_BYTES: usize = 4096;
@@ -48,9 +49,22 @@ pub struct SubmitQuery {
     pub filename: Option<String>,
 }
 
+/// Opens the artifact-store transfer of an upload once the client's file
+/// name is known (`None` from the part or the query: the default name);
+/// it answers `None` when the data directory is the store.
+pub type OpenRemote<'a> = &'a (dyn Fn(Option<&str>) -> Option<StreamingPut> + Send + Sync);
+
+/// The input's file name as the job records it: the last path component
+/// of the client's name, at most 200 characters, `upload` when none.
+pub fn input_name(client_name: Option<&str>) -> String {
+    client_name
+        .map(|n| n.rsplit(['/', '\\']).next().unwrap_or(n).chars().take(200).collect::<String>())
+        .filter(|n| !n.is_empty())
+        .unwrap_or_else(|| "upload".to_string())
+}
+
 /// A received upload, stored in a temporary file removed on drop unless
 /// [`Upload::keep`] is called.
-#[derive(Debug)]
 pub struct Upload {
     /// The temporary file.
     pub path: PathBuf,
@@ -64,12 +78,23 @@ pub struct Upload {
     pub content_type: Option<String>,
     /// Raw JSON of a multipart `params` part.
     pub params_part: Option<Vec<u8>>,
+    /// The file is also in the artifact store, streamed there as it came.
+    pub stored: bool,
     keep: bool,
 }
 
 impl Upload {
     fn new(path: PathBuf) -> Self {
-        Self { path, bytes: 0, head: Vec::new(), filename: None, content_type: None, params_part: None, keep: false }
+        Self {
+            path,
+            bytes: 0,
+            head: Vec::new(),
+            filename: None,
+            content_type: None,
+            params_part: None,
+            stored: false,
+            keep: false,
+        }
     }
 
     /// The file now belongs to someone else (the job); do not remove it.
@@ -135,11 +160,15 @@ pub async fn drain<E>(mut stream: impl Stream<Item = Result<Bytes, E>> + Unpin) 
     let _ = tokio::time::timeout(DRAIN_MAX_TIME, discard).await;
 }
 
-/// Streams `stream` into `upload`'s file, enforcing `limit` on the total.
+/// Streams `stream` into `upload`'s file, enforcing `limit` on the total,
+/// and into `remote` (the artifact store) chunk by chunk beside it, so
+/// the upload is in the store when its last byte is on disk. A failed or
+/// cut-off upload drops `remote`, which aborts it.
 async fn stream_to_file<E: std::fmt::Display>(
     mut stream: impl Stream<Item = Result<Bytes, E>> + Unpin,
     upload: &mut Upload,
     limit: u64,
+    mut remote: Option<StreamingPut>,
 ) -> Result<(), ApiError> {
     let mut file = tokio::fs::File::create(&upload.path)
         .await
@@ -156,10 +185,22 @@ async fn stream_to_file<E: std::fmt::Display>(
             let take = (HEAD_BYTES - upload.head.len()).min(chunk.len());
             upload.head.extend_from_slice(&chunk[..take]);
         }
+        if let Some(r) = &mut remote {
+            r.write(chunk.clone()).await.map_err(stored_err)?;
+        }
         file.write_all(&chunk).await.map_err(|e| ApiError::io("writing the upload", &e))?;
     }
     crate::jobs::storage::flush_and_sync(&mut file).await.map_err(|e| ApiError::io("writing the upload", &e))?;
+    if let Some(r) = remote {
+        r.finish().await.map_err(stored_err)?;
+        upload.stored = true;
+    }
     Ok(())
+}
+
+/// The client-facing error of a failed transfer to the artifact store.
+fn stored_err(e: crate::jobs::artifact_store::ArtifactError) -> ApiError {
+    crate::jobs::JobsError::Artifacts(e).into()
 }
 
 /// Receives a raw body into `path`.
@@ -171,10 +212,11 @@ pub async fn receive_raw(
     headers: &HeaderMap,
     path: PathBuf,
     limit: u64,
+    remote: OpenRemote<'_>,
 ) -> Result<Upload, ApiError> {
     let mut up = Upload::new(path);
     up.content_type = media_type(headers);
-    stream_to_file(body.into_data_stream(), &mut up, limit).await?;
+    stream_to_file(body.into_data_stream(), &mut up, limit, remote(None)).await?;
     Ok(up)
 }
 
@@ -299,12 +341,13 @@ pub async fn receive_multipart(
     headers: &HeaderMap,
     path: PathBuf,
     limit: u64,
+    remote: OpenRemote<'_>,
 ) -> Result<Upload, ApiError> {
     let boundary = multipart_boundary(headers)?;
     let shared = SharedStream(Arc::new(Mutex::new(body.into_data_stream())));
     let guarded = FramingGuard::new(shared.clone(), &boundary);
     let mp = multer::Multipart::with_constraints(guarded, boundary, multipart_constraints(limit));
-    let result = read_parts(mp, path, limit).await;
+    let result = read_parts(mp, path, limit, remote).await;
     if result.is_err() {
         drain(shared).await;
     }
@@ -312,7 +355,12 @@ pub async fn receive_multipart(
 }
 
 /// Reads the parts of `mp` (see [`receive_multipart`]).
-async fn read_parts(mut mp: multer::Multipart<'static>, path: PathBuf, limit: u64) -> Result<Upload, ApiError> {
+async fn read_parts(
+    mut mp: multer::Multipart<'static>,
+    path: PathBuf,
+    limit: u64,
+    remote: OpenRemote<'_>,
+) -> Result<Upload, ApiError> {
     let mut up = Upload::new(path);
     let mut have_file = false;
     while let Some(field) = mp.next_field().await.map_err(|e| multipart_error(e, limit))? {
@@ -330,7 +378,8 @@ async fn read_parts(mut mp: multer::Multipart<'static>, path: PathBuf, limit: u6
                     .and_then(|v| v.to_str().ok())
                     .map(|c| c.split(';').next().unwrap_or("").trim().to_ascii_lowercase());
                 let mut error = None;
-                let written = stream_to_file(PartData { field, limit, error: &mut error }, &mut up, limit).await;
+                let sink = remote(up.filename.as_deref());
+                let written = stream_to_file(PartData { field, limit, error: &mut error }, &mut up, limit, sink).await;
                 if let Err(e) = written {
                     return Err(error.unwrap_or(e));
                 }

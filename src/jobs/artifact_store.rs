@@ -93,6 +93,15 @@ pub trait ArtifactStore: Send + Sync {
     /// [`ArtifactError`] when it cannot.
     fn put(&self, local: &Path, key: &str) -> Result<(), ArtifactError>;
 
+    /// A transfer into the object `key` that takes the bytes as they
+    /// arrive (an upload streaming in from a client), so the object is
+    /// stored when the last chunk is, not after a second pass over the
+    /// file; `None` for the data directory, where the file is the object.
+    fn stream_put(&self, key: &str) -> Option<StreamingPut> {
+        let _ = key;
+        None
+    }
+
     /// Makes sure `local/key` holds the object `key`, fetching it if the
     /// data directory lacks it; false when the store has no such object.
     ///
@@ -145,6 +154,61 @@ pub trait ArtifactStore: Send + Sync {
     ) -> Result<Option<String>, ArtifactError> {
         let _ = (key, filename, media_type, expires);
         Ok(None)
+    }
+}
+
+/// An object being written chunk by chunk ([`ArtifactStore::stream_put`]).
+/// At most [`STREAM_CHUNKS`] chunks and [`STREAM_PARTS`] multipart parts are
+/// in flight, so a slow store slows the sender instead of filling memory.
+/// Dropped before [`StreamingPut::finish`], the transfer is aborted and no
+/// object is left.
+pub struct StreamingPut {
+    chunks: tokio::sync::mpsc::Sender<Option<bytes::Bytes>>,
+    done: tokio::sync::oneshot::Receiver<Result<(), ArtifactError>>,
+}
+
+/// Chunks queued between the sender and the transfer.
+const STREAM_CHUNKS: usize = 4;
+/// Multipart parts of one streaming transfer uploaded at once.
+const STREAM_PARTS: usize = 2;
+
+impl StreamingPut {
+    /// Hands `chunk` to the transfer; waits while the store is behind.
+    ///
+    /// # Errors
+    /// The transfer's error when it has failed.
+    pub async fn write(&mut self, chunk: bytes::Bytes) -> Result<(), ArtifactError> {
+        if self.chunks.send(Some(chunk)).await.is_ok() {
+            return Ok(());
+        }
+        match (&mut self.done).await {
+            Ok(Err(e)) => Err(e),
+            _ => Err(remote("the transfer task stopped")),
+        }
+    }
+
+    /// Completes the object and waits until the store has it.
+    ///
+    /// # Errors
+    /// The transfer's error.
+    pub async fn finish(mut self) -> Result<(), ArtifactError> {
+        let _ = self.chunks.send(None).await;
+        (&mut self.done).await.unwrap_or_else(|_| Err(remote("the transfer task stopped")))
+    }
+}
+
+/// Feeds the chunks of `rx` into `w` until the sender finishes (`None`
+/// sent: the object is completed) or goes away (aborted).
+async fn pump(
+    w: &mut object_store::buffered::BufWriter,
+    rx: &mut tokio::sync::mpsc::Receiver<Option<bytes::Bytes>>,
+) -> Result<(), ArtifactError> {
+    loop {
+        match rx.recv().await {
+            Some(Some(chunk)) => w.put(chunk).await.map_err(remote)?,
+            Some(None) => return tokio::io::AsyncWriteExt::shutdown(w).await.map_err(remote),
+            None => return Err(remote("the upload was abandoned before its end")),
+        }
     }
 }
 
@@ -231,6 +295,22 @@ impl S3Artifacts {
 }
 
 impl ArtifactStore for S3Artifacts {
+    fn stream_put(&self, key: &str) -> Option<StreamingPut> {
+        let handle = self.rt.handle()?;
+        let (chunks, mut rx) = tokio::sync::mpsc::channel(STREAM_CHUNKS);
+        let (done_tx, done) = tokio::sync::oneshot::channel();
+        let mut w = object_store::buffered::BufWriter::with_capacity(self.store.clone(), self.path(key), PART_BYTES)
+            .with_max_concurrency(STREAM_PARTS);
+        handle.spawn(async move {
+            let r = pump(&mut w, &mut rx).await;
+            if r.is_err() {
+                let _ = w.abort().await;
+            }
+            let _ = done_tx.send(r);
+        });
+        Some(StreamingPut { chunks, done })
+    }
+
     fn put(&self, local: &Path, key: &str) -> Result<(), ArtifactError> {
         let file = local.join(key);
         let (store, path) = (self.store.clone(), self.path(key));
@@ -446,5 +526,32 @@ mod tests {
         s3.delete_prefix("jobs/x/", None).unwrap();
         let d = tempfile::tempdir().unwrap();
         assert!(!s3.fetch(d.path(), "jobs/x/input/a.stl").unwrap());
+    }
+
+    #[test]
+    fn a_streamed_object_is_whole_once_finished_and_absent_when_dropped() {
+        let Some(s3) = test_bucket() else { return };
+        let big: Vec<u8> = (0..2 * PART_BYTES + 777).map(|i| ((i * 2_654_435_761usize) >> 11) as u8).collect();
+        let rt = tokio::runtime::Builder::new_current_thread().enable_all().build().unwrap();
+        let send = |key: &str, finish: bool| {
+            let mut put = s3.stream_put(key).unwrap();
+            rt.block_on(async {
+                for chunk in big.chunks(64 * 1024 + 3) {
+                    put.write(bytes::Bytes::copy_from_slice(chunk)).await.unwrap();
+                }
+                if finish {
+                    put.finish().await.unwrap();
+                }
+            });
+        };
+        send("jobs/s/input/big.stl", true);
+        send("jobs/s/input/cut.stl", false);
+        let d = tempfile::tempdir().unwrap();
+        assert!(s3.fetch(d.path(), "jobs/s/input/big.stl").unwrap());
+        assert_eq!(std::fs::read(d.path().join("jobs/s/input/big.stl")).unwrap(), big);
+        // Two parts were sent before the drop; an unfinished multipart upload is no object.
+        assert!(!s3.fetch(d.path(), "jobs/s/input/cut.stl").unwrap(), "an abandoned upload left an object");
+        assert!(LocalArtifacts.stream_put("jobs/s/input/x.stl").is_none());
+        s3.delete_prefix("jobs/s/", None).unwrap();
     }
 }

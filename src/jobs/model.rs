@@ -180,8 +180,14 @@ pub struct JobRecord {
 /// A job to insert: the upload has already been written to `upload_path`.
 #[derive(Debug, Clone)]
 pub struct NewJob {
+    /// The job's id, chosen before the upload so that it can stream to
+    /// its key in the artifact store ([`JobId::random`] otherwise).
+    pub id: JobId,
     /// Temporary file holding the upload; moved into the job directory.
     pub upload_path: PathBuf,
+    /// The upload is already in the artifact store under the job's input
+    /// key (streamed there as it arrived).
+    pub input_stored: bool,
     /// Client-side file name (or `upload`).
     pub input_name: String,
     /// Upload size in bytes.

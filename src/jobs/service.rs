@@ -224,6 +224,26 @@ impl JobService {
         self.inner.config.data_dir.join("tmp").join(format!("upload-{}.part", uuid::Uuid::new_v4().simple()))
     }
 
+    /// A transfer of job `id`'s input, named `input_name` by the client,
+    /// straight into the artifact store while the upload arrives; `None`
+    /// when the data directory is the store. [`NewJob::input_stored`] then
+    /// tells [`JobService::submit`] not to put the file a second time.
+    pub fn stream_input(&self, id: JobId, input_name: &str) -> Option<super::artifact_store::StreamingPut> {
+        self.inner.artifacts.stream_put(&JobsConfig::input_key(id, input_name))
+    }
+
+    /// Removes, in the background, the objects an upload of job `id` put
+    /// into the artifact store before the submission was refused (the
+    /// start-up sweep of orphans is the backstop when this fails).
+    pub fn forget_streamed_input(&self, id: JobId) {
+        let inner = self.inner.clone();
+        if let Ok(rt) = tokio::runtime::Handle::try_current() {
+            rt.spawn_blocking(move || forget_upload(&inner, id));
+        } else {
+            forget_upload(&inner, id);
+        }
+    }
+
     /// True when the queue can take another job (checked before an upload is
     /// read; [`JobService::submit`] checks again atomically).
     ///
@@ -271,18 +291,24 @@ impl JobService {
         self.blocking(move |inner| {
             let _admitted = admission.lock().unwrap_or_else(|p| p.into_inner());
             let quotas = &inner.config.quotas;
+            let id = new.id;
             if let Err(e) = super::quota::check_admission(&*inner.store, quotas, new.tenant.as_deref(), new.input_bytes)
             {
                 let _ = std::fs::remove_file(&new.upload_path);
+                if new.input_stored {
+                    forget_upload(inner, id);
+                }
                 return Err(e);
             }
-            let id = JobId::random();
             let dir = inner.config.job_dir(id);
             let input_name = super::model::sanitize_file_name(&new.input_name);
             let input_path = inner.config.input_path(id, &input_name);
             let cleanup = |inner: &Inner| {
                 let _ = std::fs::remove_file(&new.upload_path);
                 remove_job_dir(&inner.config, id);
+                if new.input_stored {
+                    forget_upload(inner, id);
+                }
             };
             let estimate = match memory_estimate(&inner.config, &new) {
                 Ok(bytes) if bytes <= inner.config.memory_budget => bytes,
@@ -314,7 +340,9 @@ impl JobService {
                 memory_estimate_bytes: estimate,
                 tenant: new.tenant.as_deref(),
             };
-            if let Err(e) = inner.artifacts.put(&inner.config.data_dir, &JobsConfig::input_key(id, &input_name)) {
+            if !new.input_stored
+                && let Err(e) = inner.artifacts.put(&inner.config.data_dir, &JobsConfig::input_key(id, &input_name))
+            {
                 cleanup(inner);
                 return Err(e.into());
             }

@@ -17,7 +17,9 @@ async fn submit(svc: &JobService) -> Result<JobRecord, JobsError> {
     let path = svc.upload_path();
     std::fs::write(&path, b"solid x\nendsolid x\n").unwrap();
     svc.submit(NewJob {
+        id: JobId::random(),
         upload_path: path,
+        input_stored: false,
         input_name: "x.stl".into(),
         input_bytes: 19,
         format: Some("stl".into()),
@@ -259,7 +261,9 @@ async fn submit_as(svc: &JobService, tenant: &str) -> Result<JobRecord, JobsErro
     let path = svc.upload_path();
     std::fs::write(&path, b"solid x\nendsolid x\n").unwrap();
     let new = NewJob {
+        id: JobId::random(),
         upload_path: path,
+        input_stored: false,
         input_name: "x.stl".into(),
         input_bytes: 19,
         format: Some("stl".into()),

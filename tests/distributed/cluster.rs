@@ -153,6 +153,17 @@ impl Cluster {
         }
     }
 
+    /// The job directories (`<id>`) that have objects in the bucket (S3
+    /// only), read a second after the last write (S3 keeps times to the
+    /// second) so that every object written so far is listed.
+    pub fn bucket_job_dirs(&self) -> Vec<String> {
+        use meshatlas::jobs::artifact_store::{ArtifactLocation, open};
+        assert_eq!(self.artifacts, Artifacts::S3);
+        std::thread::sleep(Duration::from_millis(1100));
+        let store = open(&ArtifactLocation::parse(&self.artifacts_url).unwrap()).unwrap();
+        store.job_dirs_older_than(Duration::ZERO).unwrap()
+    }
+
     /// Submits the test mesh through `api`; returns the job id.
     pub async fn submit(&self, api: &Proc) -> String {
         let r = self

@@ -221,6 +221,42 @@ async fn redirect_one_hands_out_a_presigned_url_with_s3_and_the_file_without(c: 
     assert_eq!(bad.status(), 400);
 }
 
+/// Uploads stream into the bucket as they arrive. One the API refuses after
+/// reading it (an empty body; a `params` part that is not JSON, after a file
+/// part larger than one multipart part) or that the client cuts off
+/// half-way leaves no object and no job; an accepted one is in the bucket
+/// when the 202 comes.
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn s3_uploads_refused_or_cut_off_leave_no_object() {
+    let Some(c) = Cluster::new(Artifacts::S3) else { return };
+    let api = c.api(&[]);
+    let r = c.client.post(format!("{}/v1/jobs?format=stl", api.base)).body(Vec::new()).send().await.unwrap();
+    assert_eq!(r.status(), 400, "{}", r.text().await.unwrap());
+    let big = vec![b'x'; 11 << 20];
+    let form = reqwest::multipart::Form::new()
+        .part("file", reqwest::multipart::Part::bytes(big.clone()).file_name("big.stl"))
+        .text("params", "{not json");
+    let r = c.client.post(format!("{}/v1/jobs", api.base)).multipart(form).send().await.unwrap();
+    assert_eq!(r.status(), 400);
+    assert!(r.text().await.unwrap().contains("urn:meshatlas:problem:invalid-json"));
+    {
+        use tokio::io::AsyncWriteExt;
+        let addr = api.base.trim_start_matches("http://").to_string();
+        let mut tcp = tokio::net::TcpStream::connect(&addr).await.unwrap();
+        let head =
+            format!("POST /v1/jobs?format=stl HTTP/1.1\r\nHost: {addr}\r\nContent-Length: {}\r\n\r\n", 3 * big.len());
+        tcp.write_all(head.as_bytes()).await.unwrap();
+        tcp.write_all(&big).await.unwrap();
+        tcp.flush().await.unwrap();
+        tokio::time::sleep(Duration::from_millis(300)).await;
+    }
+    assert_eq!(c.bucket_job_dirs(), Vec::<String>::new(), "objects of refused or cut-off uploads");
+    let listed: Value = c.client.get(format!("{}/v1/jobs", api.base)).send().await.unwrap().json().await.unwrap();
+    assert_eq!(listed["jobs"].as_array().map(Vec::len), Some(0), "{listed:#}");
+    let id = c.submit(&api).await;
+    assert!(c.stored(&format!("jobs/{id}/input/upload")), "the accepted upload is in the bucket");
+}
+
 /// Each scenario twice: artifacts in one shared data directory, and in an
 /// S3 bucket with a data directory per process.
 macro_rules! on_both_artifact_stores {
