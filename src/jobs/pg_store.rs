@@ -502,13 +502,13 @@ impl JobStore for PgStore {
             let id: String = r.try_get(0).map_err(pg)?;
             let owner: Option<String> = r.try_get(1).map_err(pg)?;
             let expired: bool = r.try_get(2).map_err(pg)?;
-            if expired || owner.as_deref().is_none_or(is_dead) {
-                // A dead owner's lease may still run: then its expiry is not re-checked.
-                gone.push((id, owner, !expired));
+            let died = owner.as_deref().is_none_or(is_dead);
+            if expired || died {
+                gone.push((id, owner, died));
             }
         }
         let mut rec = Recovery::default();
-        for (id, owner, dead) in gone {
+        for (id, owner, died) in gone {
             let job = parse_id(id.clone())?;
             let reaped = self.run(move |pool| async move {
                 let mut client = pool.get().await.map_err(pg)?;
@@ -520,14 +520,14 @@ impl JobStore for PgStore {
                              AND lease_owner IS NOT DISTINCT FROM $2 \
                              AND ($3 OR coalesce(lease_until_ms < {NOW_MS}, true)) FOR UPDATE SKIP LOCKED"
                         ),
-                        &[&id, &owner, &dead],
+                        &[&id, &owner, &died],
                     )
                     .await
                     .map_err(pg)?;
                 let Some(row) = row else { return Ok(None) };
                 let (attempts, crashes): (i64, i64) =
-                    (row.try_get(0).map_err(pg)?, row.try_get::<_, i64>(1).map_err(pg)? + 1);
-                let decision = reap_decision(attempts, crashes, max_attempts);
+                    (row.try_get(0).map_err(pg)?, row.try_get::<_, i64>(1).map_err(pg)? + i64::from(died));
+                let decision = reap_decision(attempts, crashes, max_attempts, died);
                 match &decision {
                     Reaped::Requeue => {
                         tx.execute(

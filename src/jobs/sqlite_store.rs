@@ -388,13 +388,13 @@ impl JobStore for SqliteStore {
         };
         for (id, attempts, crashes, owner, until) in rows {
             // A row from before leases has no owner: its process is gone.
-            let gone = until.is_none_or(|t| t < now) || owner.as_deref().is_none_or(is_dead);
-            if !gone {
+            let died = owner.as_deref().is_none_or(is_dead);
+            if !died && until.is_some_and(|t| t >= now) {
                 continue;
             }
-            let crashes = crashes + 1;
+            let crashes = crashes + i64::from(died);
             let job = parse_id(id.clone())?;
-            match reap_decision(attempts, crashes, max_attempts) {
+            match reap_decision(attempts, crashes, max_attempts, died) {
                 Reaped::Requeue => {
                     tx.execute(
                         "UPDATE jobs SET state = 'queued', stage = NULL, progress = 0, stage_seconds = '{}', \

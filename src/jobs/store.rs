@@ -184,11 +184,14 @@ pub enum Reaped {
 }
 
 /// Decides the fate of a job whose lease expired (or whose worker is known
-/// dead) after `attempts` claims and `crashes` such interruptions (this one
-/// counted): failed `interrupted` at `max_attempts` claims, failed
-/// `crashed-server` at [`MAX_CRASHES`] (the process died under it twice:
-/// likely out of memory), requeued otherwise.
-pub fn reap_decision(attempts: i64, crashes: i64, max_attempts: u32) -> Reaped {
+/// dead) after `attempts` claims and `crashes` deaths of the process that ran
+/// it (this one counted when `died`): failed `interrupted` at `max_attempts`
+/// claims, failed `crashed-server` at [`MAX_CRASHES`] (the process died under
+/// it twice: likely out of memory), requeued otherwise. Only a death proven
+/// on this host counts as a crash: a lease that merely lapsed (a paused or
+/// partitioned worker, or one on another machine) is an interruption, retried
+/// up to `max_attempts`.
+pub fn reap_decision(attempts: i64, crashes: i64, max_attempts: u32, died: bool) -> Reaped {
     if attempts >= i64::from(max_attempts) {
         Reaped::Fail(
             FailureKind::Interrupted,
@@ -197,7 +200,7 @@ pub fn reap_decision(attempts: i64, crashes: i64, max_attempts: u32) -> Reaped {
                  it is not retried again (the input may be too large for this server)"
             ),
         )
-    } else if crashes >= MAX_CRASHES {
+    } else if died && crashes >= MAX_CRASHES {
         Reaped::Fail(
             FailureKind::CrashedServer,
             format!(
@@ -515,9 +518,12 @@ mod tests {
 
     #[test]
     fn reaping_requeues_then_fails_at_max_attempts_or_the_second_crash() {
-        assert_eq!(reap_decision(1, 1, 3), Reaped::Requeue);
-        assert!(matches!(reap_decision(3, 1, 3), Reaped::Fail(FailureKind::Interrupted, _)));
-        assert!(matches!(reap_decision(2, 2, 3), Reaped::Fail(FailureKind::CrashedServer, _)));
-        assert!(matches!(reap_decision(1, 1, 1), Reaped::Fail(FailureKind::Interrupted, _)));
+        assert_eq!(reap_decision(1, 1, 3, true), Reaped::Requeue);
+        assert!(matches!(reap_decision(3, 1, 3, true), Reaped::Fail(FailureKind::Interrupted, _)));
+        assert!(matches!(reap_decision(2, 2, 3, true), Reaped::Fail(FailureKind::CrashedServer, _)));
+        assert!(matches!(reap_decision(1, 1, 1, true), Reaped::Fail(FailureKind::Interrupted, _)));
+        // A lapsed lease without a proven death is retried up to max_attempts.
+        assert_eq!(reap_decision(2, 2, 3, false), Reaped::Requeue);
+        assert!(matches!(reap_decision(3, 2, 3, false), Reaped::Fail(FailureKind::Interrupted, _)));
     }
 }

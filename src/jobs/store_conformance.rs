@@ -92,8 +92,10 @@ pub fn list_is_newest_first_and_paginates(s: &dyn JobStore) {
     assert_eq!(p3.next_cursor, None);
 }
 
-/// A live lease is not reaped; an expired one (or a dead owner) is, counting
-/// a crash; the second crash or `max_attempts` claims fail the job.
+/// A live lease is not reaped; an expired one (or a dead owner) is. Only an
+/// owner proven dead counts a crash; the second crash or `max_attempts`
+/// claims fail the job, and a lease that merely lapsed is retried up to
+/// `max_attempts` (a paused or remote worker is not a crashed server).
 pub fn reaping_follows_leases_and_counts_crashes(s: &dyn JobStore) {
     let never = |_: &str| false;
     let a = insert(s, 10).unwrap();
@@ -107,18 +109,37 @@ pub fn reaping_follows_leases_and_counts_crashes(s: &dyn JobStore) {
     assert_eq!((c.attempts, c.crashes), (2, 1));
     std::thread::sleep(Duration::from_millis(30));
     let rec = s.reap_expired(3, &never).unwrap();
-    assert_eq!(rec.crashed, vec![a.id], "expired lease, second crash");
+    assert_eq!(rec.requeued, vec![a.id], "a lapsed lease is an interruption, not a second crash");
+    assert_eq!(s.get(a.id).unwrap().unwrap().crashes, 1);
+    claim_next(s, "w3", LONG).unwrap();
+    let rec = s.reap_expired(5, &|o: &str| o == "w3").unwrap();
+    assert_eq!(rec.crashed, vec![a.id], "second proven death");
     let j = s.get(a.id).unwrap().unwrap();
     assert_eq!((j.state, j.crashes), (JobState::Failed, 2));
     assert_eq!(j.error.unwrap().kind, FailureKind::CrashedServer);
-    // max_attempts 1: the first interruption already fails it.
+    // Leases that lapse without a death: interrupted at max_attempts, never crashed-server.
     let b = insert(s, 10).unwrap();
-    claim_next(s, "w3", Duration::from_millis(1)).unwrap();
+    for attempt in 1..=3 {
+        let (c, _) = claim_next(s, &format!("p{attempt}"), Duration::from_millis(1)).unwrap();
+        assert_eq!((c.id, c.attempts), (b.id, attempt));
+        std::thread::sleep(Duration::from_millis(30));
+        let rec = s.reap_expired(3, &never).unwrap();
+        if attempt < 3 {
+            assert_eq!(rec.requeued, vec![b.id]);
+        } else {
+            assert_eq!(rec.failed, vec![b.id]);
+        }
+    }
+    let j = s.get(b.id).unwrap().unwrap();
+    assert_eq!((j.crashes, j.error.unwrap().kind), (0, FailureKind::Interrupted));
+    // max_attempts 1: the first interruption already fails it.
+    let d = insert(s, 10).unwrap();
+    claim_next(s, "w4", Duration::from_millis(1)).unwrap();
     std::thread::sleep(Duration::from_millis(30));
-    assert_eq!(s.reap_expired(1, &never).unwrap().failed, vec![b.id]);
-    assert_eq!(s.get(b.id).unwrap().unwrap().error.unwrap().kind, FailureKind::Interrupted);
-    assert_eq!(s.count_by_state().unwrap()[&JobState::Failed], 2);
-    assert!(s.claim(b.id, "w4", LONG).unwrap().is_none(), "a failed job cannot be claimed");
+    assert_eq!(s.reap_expired(1, &never).unwrap().failed, vec![d.id]);
+    assert_eq!(s.get(d.id).unwrap().unwrap().error.unwrap().kind, FailureKind::Interrupted);
+    assert_eq!(s.count_by_state().unwrap()[&JobState::Failed], 3);
+    assert!(s.claim(d.id, "w5", LONG).unwrap().is_none(), "a failed job cannot be claimed");
 }
 
 /// The attempt and owner fence every worker write: after the job was taken
