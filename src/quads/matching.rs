@@ -16,9 +16,12 @@
 //! face (with the partners of every triangle in it, so no pair is cut), the
 //! ring doubling (4, 8, 16, …) until a path is found, the window is the
 //! root's whole connected part of the face (no path exists: the face needs
-//! subdivision) or it holds [`MAX_WINDOW`] triangles. Neighbours are tried
-//! cheapest pair first. Everything is sequential in index order, so the
-//! result is deterministic.
+//! subdivision) or it holds [`MAX_WINDOW`] triangles. A root whose windows
+//! hold no path stays free for the strips ([`super::strip`]) and the search
+//! goes on with the face's other roots, up to [`MAX_FAILED_ROOTS_PER_FACE`]
+//! failures (beyond that the face is left to subdivision unsearched).
+//! Neighbours are tried cheapest pair first. Everything is sequential in
+//! index order, so the result is deterministic.
 
 use std::collections::VecDeque;
 
@@ -28,10 +31,19 @@ use crate::progress::{Cancelled, Progress};
 /// First ring radius of a window (in dual edges).
 const FIRST_RADIUS: u32 = 4;
 
-/// Largest window searched (triangles): a face this big with a triangle no
-/// window can pair is subdivided without searching it whole, as an
-/// unbounded search would cost `O(n²)`.
-pub const MAX_WINDOW: usize = 4096;
+/// Largest window searched (triangles). As the matching fills up, the
+/// free triangles left are far apart: on a 100k-triangle sphere the last
+/// roots needed windows beyond 4096 triangles, and the strips that joined
+/// them instead were long and often invalid (decisions, session 15). A face
+/// this big with a triangle no window can pair is not searched whole, as
+/// an unbounded search would cost `O(n²)`.
+pub const MAX_WINDOW: usize = 65536;
+
+/// Roots of one model face whose windows hold no augmenting path before the
+/// face's remaining roots are left unsearched: a few such roots are the
+/// strips' work (a face of 100k triangles had one), many mean the face will
+/// be subdivided anyway, and each costs a full window search.
+pub const MAX_FAILED_ROOTS_PER_FACE: usize = 64;
 
 /// What the completion did.
 #[derive(Debug, Clone, Default, PartialEq, Eq)]
@@ -40,15 +52,15 @@ pub struct Completion {
     pub n_windows: usize,
     /// Augmenting paths applied.
     pub n_augmentations: usize,
-    /// The first root of each failing face: no augmenting path within its
-    /// windows.
+    /// The roots with no augmenting path within their windows.
     pub unmatched: Vec<u32>,
 }
 
 /// Completes `partner` (the partner of each triangle or [`NONE`]) by
 /// augmenting paths over the pairs of `graph`, roots taken in index order.
-/// Once a root of a model face (`model_face_per_triangle`) fails, the face
-/// will be subdivided whole, so its later roots are not searched.
+/// Once [`MAX_FAILED_ROOTS_PER_FACE`] roots of a model face
+/// (`model_face_per_triangle`) have failed, its later roots are not
+/// searched.
 ///
 /// # Errors
 /// [`Cancelled`] when `progress` is cancelled.
@@ -58,7 +70,7 @@ pub fn complete_matching(
     partner: &mut [u32],
     progress: &Progress,
 ) -> Result<Completion, Cancelled> {
-    let mut failed_faces: Vec<u32> = Vec::new();
+    let mut failures_per_face: std::collections::HashMap<u32, usize> = std::collections::HashMap::new();
     let roots: Vec<u32> = (0..partner.len() as u32).filter(|&t| partner[t as usize] == NONE).collect();
     let mut out = Completion::default();
     let mut window = Window::new(partner.len());
@@ -68,7 +80,8 @@ pub fn complete_matching(
             progress.set(i as f64 / roots.len() as f64);
         }
         let face = model_face_per_triangle[root as usize];
-        if partner[root as usize] != NONE || failed_faces.contains(&face) {
+        let failures = failures_per_face.get(&face).copied().unwrap_or(0);
+        if partner[root as usize] != NONE || failures >= MAX_FAILED_ROOTS_PER_FACE {
             continue;
         }
         let mut radius = FIRST_RADIUS;
@@ -81,7 +94,7 @@ pub fn complete_matching(
             }
             if whole || window.members.len() >= MAX_WINDOW {
                 out.unmatched.push(root);
-                failed_faces.push(face);
+                failures_per_face.insert(face, failures + 1);
                 break;
             }
             radius = radius.saturating_mul(2);

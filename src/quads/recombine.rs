@@ -102,6 +102,7 @@ pub fn recombine(tri: SurfaceTriangulation, progress: &Progress) -> Result<(Quad
     progress.check()?;
 
     let t = Instant::now();
+    let greedy_elements = elements(&tri, &graph, &greedy);
     let (elements, face_per_element) = elements(&tri, &graph, &partner);
     let n_faces = tri.model_face_per_triangle.iter().map(|&f| f as usize + 1).max().unwrap_or(0);
     let SurfaceTriangulation { mut vertices, mut curve_edges, singular_vertices, seam_vertices, .. } = tri;
@@ -116,6 +117,7 @@ pub fn recombine(tri: SurfaceTriangulation, progress: &Progress) -> Result<(Quad
         .collect();
     let flagged = faces_to_subdivide(n_faces, &failing, &graph.face_links);
     stats.n_subdivided_faces = flagged.iter().filter(|&&f| f).count();
+    let (elements, face_per_element) = greedy_in_flagged_faces((elements, face_per_element), greedy_elements, &flagged);
     let (quads, model_face_per_quad, n_subdivision_quads) =
         subdivide(&mut vertices, &elements, &face_per_element, &flagged, &mut curve_edges);
     stats.n_subdivision_quads = n_subdivision_quads;
@@ -133,6 +135,25 @@ pub fn recombine(tri: SurfaceTriangulation, progress: &Progress) -> Result<(Quad
         seam_vertices,
     };
     Ok((mesh, stats))
+}
+
+/// The elements of `matched` outside the `flagged` faces, then those of
+/// `greedy` inside them: a face that is subdivided anyway is split from the
+/// greedy pairs, the cheapest (best-shaped) ones, rather than from the
+/// pairs augmenting paths forced (on fandisk those gave 165 irregular
+/// vertices and a quad of scaled Jacobian 10⁻⁵ against 132 and 0.036).
+fn greedy_in_flagged_faces(
+    matched: (Vec<Element>, Vec<u32>),
+    greedy: (Vec<Element>, Vec<u32>),
+    flagged: &[bool],
+) -> (Vec<Element>, Vec<u32>) {
+    if !flagged.contains(&true) {
+        return matched;
+    }
+    let keep = |(_, f): &(Element, u32)| !flagged[*f as usize];
+    let outside = matched.0.into_iter().zip(matched.1).filter(keep);
+    let inside = greedy.0.into_iter().zip(greedy.1).filter(|e| !keep(e));
+    outside.chain(inside).unzip()
 }
 
 /// Pairs in `partner`.

@@ -14,10 +14,12 @@
 //!
 //! Every split element keeps its orientation and its neighbours across the
 //! split edges are the path's own elements, so the mesh stays conforming.
-//! The midpoints are then relaxed to their neighbours' centroid; a face
-//! where a strip still has a quad at or below [`MIN_SCALED_JACOBIAN`] has
-//! all its strips undone and is left to subdivision, as is a free triangle
-//! with no partner in its face (odd count). The midpoints' irregular
+//! The midpoints are then relaxed to their neighbours' centroid; a strip
+//! that still has a quad at or below [`MIN_SCALED_JACOBIAN`] is undone and
+//! its triangles look for another route, around the quads it crossed, in
+//! the next round. A face where a triangle still has no partner after
+//! [`STRIP_ROUNDS`] rounds (odd count, or no valid route) has all its
+//! strips undone and is left to subdivision. The midpoints' irregular
 //! vertices are removed later by cavity remeshing.
 
 use std::collections::{HashMap, HashSet, VecDeque};
@@ -231,15 +233,21 @@ fn polygon_normal(corners: &[u32], positions: &[Vec3]) -> Vec3 {
 const RELAX_SWEEPS: usize = 20;
 
 /// A strip that leaves a quad at or below this scaled Jacobian (after
-/// relaxing) undoes every strip of its face: the face is left to
-/// subdivision.
+/// relaxing) is undone.
 const MIN_SCALED_JACOBIAN: f64 = 0.05;
+
+/// Rounds of strip joining: a strip left invalid by relaxing is undone and
+/// the quads it crossed are closed to later strips, so its two triangles
+/// look for another route in the next round.
+const STRIP_ROUNDS: usize = 4;
 
 /// Joins the free triangles of `elements` (model faces `faces`) in pairs
 /// (module doc), appending the midpoints to `vertices`. Returns the new
-/// elements and faces; in a face where a strip cannot be made valid every
-/// strip is undone, and triangles with no partner stay (midpoints of undone strips are left
-/// unused: cleanup drops vertices in no quad).
+/// elements and faces. A strip that relaxing leaves invalid is undone alone
+/// and its triangles try another route (up to [`STRIP_ROUNDS`] rounds); in
+/// a face where triangles stay free after that every strip is undone, so
+/// subdivision splits the matching's elements (midpoints of undone strips
+/// are left unused: cleanup drops vertices in no quad).
 pub fn join_free_triangles(
     vertices: &mut SurfaceVertices,
     elements: &[Element],
@@ -249,43 +257,45 @@ pub fn join_free_triangles(
     let curve: HashSet<(u32, u32)> = curve_edges.iter().map(|&(_, [a, b])| key(a, b)).collect();
     let mut work = Elements::new(elements, faces, &curve);
     let mut stats = StripStats::default();
-    let mut strips: Vec<Strip> = Vec::new();
+    let mut kept: Vec<Strip> = Vec::new();
     let mut mids: Vec<u32> = Vec::new();
-    let free: Vec<usize> = (0..elements.len()).filter(|&i| matches!(elements[i], Element::Triangle(_))).collect();
-    for t in free {
-        if !matches!(work.elements[t], Some((Element::Triangle(_), _))) {
-            continue;
+    for _ in 0..STRIP_ROUNDS {
+        let made = strip_round(&mut work, vertices, &mut mids);
+        if made.is_empty() {
+            break;
         }
-        let Some(path) = work.path_to_free_triangle(t) else { continue };
-        let originals: Vec<(Element, u32)> = path.iter().filter_map(|&(e, _)| work.elements[e]).collect();
-        let Some((made, new_mids)) = split_strip(&mut work, vertices, &path) else { continue };
-        mids.extend(new_mids);
-        strips.push(Strip { originals, made });
+        relax_midpoints(&work, vertices, &mids);
+        let (valid, invalid): (Vec<Strip>, Vec<Strip>) = made.into_iter().partition(|s| s.is_valid(&work, vertices));
+        kept.extend(valid);
+        if invalid.is_empty() {
+            break;
+        }
+        for strip in &invalid {
+            let restored = strip.undo(&mut work);
+            // Closed to later strips: the next round routes around them.
+            for &i in &restored[1..restored.len() - 1] {
+                work.frozen[i] = true;
+            }
+            stats.n_strips_undone += 1;
+        }
     }
-    relax_midpoints(&work, vertices, &mids);
-    // A face with an invalid strip is subdivided: all its strips are
-    // undone, so that subdivision splits the elements of the matching.
+    // A face where a triangle stays free (or a strip stays invalid) is
+    // subdivided: all its strips are undone.
     let n_faces = faces.iter().map(|&f| f as usize + 1).max().unwrap_or(0);
     let mut refused = vec![false; n_faces];
-    for strip in &strips {
-        let valid = strip.made.iter().all(|(e, normal)| match work.elements[*e] {
-            Some((Element::Quad(q), _)) => {
-                scaled_jacobian(&q.map(|v| vertices.positions[v as usize]), normal) > MIN_SCALED_JACOBIAN
-            }
-            _ => true,
-        });
-        if !valid {
-            refused[strip.originals[0].1 as usize] = true;
+    for (element, face) in work.elements.iter().flatten() {
+        if matches!(element, Element::Triangle(_)) {
+            refused[*face as usize] = true;
         }
     }
-    for strip in &strips {
-        if refused[strip.originals[0].1 as usize] {
-            for (e, _) in &strip.made {
-                work.remove(*e);
-            }
-            for &(element, face) in &strip.originals {
-                work.add(element, face);
-            }
+    for strip in &kept {
+        if !strip.is_valid(&work, vertices) {
+            refused[strip.face() as usize] = true;
+        }
+    }
+    for strip in &kept {
+        if refused[strip.face() as usize] {
+            strip.undo(&mut work);
             stats.n_strips_undone += 1;
         } else {
             stats.n_pairs_joined += 1;
@@ -296,11 +306,59 @@ pub fn join_free_triangles(
     (out, out_faces, stats)
 }
 
+/// One round: every free triangle that is still free, in element order,
+/// joined with the nearest free triangle a strip can reach; the strips made
+/// (their midpoints appended to `mids`).
+fn strip_round(work: &mut Elements, vertices: &mut SurfaceVertices, mids: &mut Vec<u32>) -> Vec<Strip> {
+    let free: Vec<usize> = (0..work.elements.len())
+        .filter(|&i| matches!(work.elements[i], Some((Element::Triangle(_), _))) && !work.frozen[i])
+        .collect();
+    let mut made = Vec::new();
+    for t in free {
+        if !matches!(work.elements[t], Some((Element::Triangle(_), _))) {
+            continue;
+        }
+        let Some(path) = work.path_to_free_triangle(t) else { continue };
+        let originals: Vec<(Element, u32)> = path.iter().filter_map(|&(e, _)| work.elements[e]).collect();
+        let Some((new_elements, new_mids)) = split_strip(work, vertices, &path) else { continue };
+        mids.extend(new_mids);
+        made.push(Strip { originals, made: new_elements });
+    }
+    made
+}
+
 /// A strip that was split: the elements it replaced and the ones it made
 /// (each with the normal of the element it came from).
 struct Strip {
     originals: Vec<(Element, u32)>,
     made: Vec<(usize, Vec3)>,
+}
+
+impl Strip {
+    /// The model face of the strip.
+    fn face(&self) -> u32 {
+        self.originals[0].1
+    }
+
+    /// Whether every quad the strip made is above [`MIN_SCALED_JACOBIAN`]
+    /// against the normal of the element it came from.
+    fn is_valid(&self, work: &Elements, vertices: &SurfaceVertices) -> bool {
+        self.made.iter().all(|(e, normal)| match work.elements[*e] {
+            Some((Element::Quad(q), _)) => {
+                scaled_jacobian(&q.map(|v| vertices.positions[v as usize]), normal) > MIN_SCALED_JACOBIAN
+            }
+            _ => true,
+        })
+    }
+
+    /// Replaces the strip's elements by the ones it split; returns their new
+    /// indices, in path order.
+    fn undo(&self, work: &mut Elements) -> Vec<usize> {
+        for (e, _) in &self.made {
+            work.remove(*e);
+        }
+        self.originals.iter().map(|&(element, face)| work.add(element, face)).collect()
+    }
 }
 
 /// Moves each midpoint to the centroid of its edge neighbours,
