@@ -16,7 +16,8 @@
 //! face (with the partners of every triangle in it, so no pair is cut), the
 //! ring doubling (4, 8, 16, …) until a path is found, the window is the
 //! root's whole connected part of the face (no path exists: the face needs
-//! subdivision) or it holds [`MAX_WINDOW`] triangles. A root whose windows
+//! subdivision) or it holds [`MAX_WINDOW`] triangles ([`SMALL_WINDOW`] once
+//! two roots of the face failed at that size). A root whose windows
 //! hold no path stays free for the strips ([`super::strip`]) and the search
 //! goes on with the face's other roots, up to [`MAX_FAILED_ROOTS_PER_FACE`]
 //! failures (beyond that the face is left to subdivision unsearched).
@@ -38,6 +39,16 @@ const FIRST_RADIUS: u32 = 4;
 /// this big with a triangle no window can pair is not searched whole, as
 /// an unbounded search would cost `O(n²)`.
 pub const MAX_WINDOW: usize = 65536;
+
+/// Window cap of a face's roots once [`MAX_LARGE_FAILURES_PER_FACE`] of its
+/// roots found no path in windows of [`MAX_WINDOW`]: a failed search of
+/// that size costs about a second (200k-triangle sphere), so a face with
+/// many roots nothing can pair does not pay it per root.
+pub const SMALL_WINDOW: usize = 4096;
+
+/// Failed searches in windows of [`MAX_WINDOW`] per face before its later
+/// roots are searched in windows of [`SMALL_WINDOW`] only.
+pub const MAX_LARGE_FAILURES_PER_FACE: usize = 2;
 
 /// Roots of one model face whose windows hold no augmenting path before the
 /// face's remaining roots are left unsearched: a few such roots are the
@@ -84,15 +95,16 @@ pub fn complete_matching(
         if partner[root as usize] != NONE || failures >= MAX_FAILED_ROOTS_PER_FACE {
             continue;
         }
+        let cap = if failures < MAX_LARGE_FAILURES_PER_FACE { MAX_WINDOW } else { SMALL_WINDOW };
         let mut radius = FIRST_RADIUS;
         loop {
-            let whole = window.gather(graph, partner, root, radius);
+            let whole = window.gather(graph, partner, root, radius, cap);
             out.n_windows += 1;
             if window.augment(graph, partner, root) {
                 out.n_augmentations += 1;
                 break;
             }
-            if whole || window.members.len() >= MAX_WINDOW {
+            if whole || window.members.len() >= cap {
                 out.unmatched.push(root);
                 failures_per_face.insert(face, failures + 1);
                 break;
@@ -137,15 +149,15 @@ impl Window {
     }
 
     /// Fills the window with the dual `radius`-ring of `root`, capped at
-    /// [`MAX_WINDOW`] triangles. Returns true when the ring reached the
+    /// `cap` triangles. Returns true when the ring reached the
     /// whole connected part of the root's face.
-    fn gather(&mut self, graph: &DualGraph, partner: &[u32], root: u32, radius: u32) -> bool {
+    fn gather(&mut self, graph: &DualGraph, partner: &[u32], root: u32, radius: u32, cap: usize) -> bool {
         self.clear();
         self.insert(root, partner);
         let mut frontier = vec![root];
         let mut ring = 0;
         while !frontier.is_empty() {
-            if ring == radius || self.members.len() >= MAX_WINDOW {
+            if ring == radius || self.members.len() >= cap {
                 return false;
             }
             // Partners count as reached: grow from them too.
