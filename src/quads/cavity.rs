@@ -36,7 +36,9 @@
 //! passes until none applies ([`MAX_PASSES`] at most); everything runs in
 //! vertex order, so the result does not depend on the thread count.
 
-use std::collections::{BTreeMap, BTreeSet, HashMap, HashSet};
+use std::collections::{BTreeMap, BTreeSet};
+
+use foldhash::{HashMap, HashSet};
 use std::time::Instant;
 
 use serde::Serialize;
@@ -393,7 +395,7 @@ impl<'m, 'p> Cavities<'m, 'p> {
     /// The boundary loop of `cavity` with the cavity on its left (quad
     /// order), or `None` unless the cavity is a disk with one simple loop.
     fn boundary_loop(&self, cavity: &QuadSet) -> Option<Vec<u32>> {
-        let mut next: HashMap<u32, u32> = HashMap::new();
+        let mut next: HashMap<u32, u32> = HashMap::default();
         let mut first = None;
         for q in cavity.iter() {
             let quad = self.mesh.quads[q as usize];

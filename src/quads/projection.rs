@@ -18,7 +18,7 @@
 //! §5.1.5); barycentric coordinates are clamped to `[0, 1]` and renormalized
 //! so they are a valid [`SurfacePoint`].
 
-use std::collections::HashMap;
+use foldhash::HashMap;
 
 use super::model::QuadModel;
 use super::surface_mesh::{ModelEntity, SurfacePoint};
@@ -77,7 +77,7 @@ impl<'a> SurfaceProjector<'a> {
             for (i, e) in curve.edges.iter().enumerate() {
                 segment_per_edge[e.idx()] = i as u32;
             }
-            let mut map = HashMap::with_capacity(curve.vertices.len());
+            let mut map = HashMap::with_capacity_and_hasher(curve.vertices.len(), Default::default());
             for (i, &v) in curve.vertices.iter().enumerate() {
                 map.entry(v).or_insert(i);
             }
@@ -327,7 +327,7 @@ fn face_indices(surface: &TriMesh, model: &QuadModel) -> Vec<FaceIndex> {
     per_face
         .into_iter()
         .map(|global| {
-            let mut local_of: HashMap<VertexId, u32> = HashMap::new();
+            let mut local_of: HashMap<VertexId, u32> = HashMap::default();
             let mut positions = Vec::new();
             let mut tris = Vec::with_capacity(global.len());
             for f in &global {
