@@ -81,7 +81,8 @@ pub fn complete_matching(
     partner: &mut [u32],
     progress: &Progress,
 ) -> Result<Completion, Cancelled> {
-    let mut failures_per_face: std::collections::HashMap<u32, usize> = std::collections::HashMap::new();
+    let n_faces = model_face_per_triangle.iter().map(|&f| f as usize + 1).max().unwrap_or(0);
+    let mut failures_per_face = vec![0usize; n_faces];
     let roots: Vec<u32> = (0..partner.len() as u32).filter(|&t| partner[t as usize] == NONE).collect();
     let mut out = Completion::default();
     let mut window = Window::new(partner.len());
@@ -91,7 +92,7 @@ pub fn complete_matching(
             progress.set(i as f64 / roots.len() as f64);
         }
         let face = model_face_per_triangle[root as usize];
-        let failures = failures_per_face.get(&face).copied().unwrap_or(0);
+        let failures = failures_per_face[face as usize];
         if partner[root as usize] != NONE || failures >= MAX_FAILED_ROOTS_PER_FACE {
             continue;
         }
@@ -106,7 +107,7 @@ pub fn complete_matching(
             }
             if whole || window.members.len() >= cap {
                 out.unmatched.push(root);
-                failures_per_face.insert(face, failures + 1);
+                failures_per_face[face as usize] += 1;
                 break;
             }
             radius = radius.saturating_mul(2);

@@ -102,10 +102,18 @@ pub fn recombine(tri: SurfaceTriangulation, progress: &Progress) -> Result<(Quad
     progress.check()?;
 
     let t = Instant::now();
-    let greedy_elements = elements(&tri, &graph, &greedy);
-    let (elements, face_per_element) = elements(&tri, &graph, &partner);
     let n_faces = tri.model_face_per_triangle.iter().map(|&f| f as usize + 1).max().unwrap_or(0);
-    let SurfaceTriangulation { mut vertices, mut curve_edges, singular_vertices, seam_vertices, .. } = tri;
+    let SurfaceTriangulation {
+        mut vertices,
+        mut curve_edges,
+        singular_vertices,
+        seam_vertices,
+        triangles,
+        model_face_per_triangle,
+        ..
+    } = tri;
+    let (elements, face_per_element) =
+        matching_elements(&triangles, &model_face_per_triangle, &graph, &partner, |_| true);
     let (elements, face_per_element, strips) =
         join_free_triangles(&mut vertices, &elements, &face_per_element, &curve_edges);
     stats.strips = strips;
@@ -117,7 +125,17 @@ pub fn recombine(tri: SurfaceTriangulation, progress: &Progress) -> Result<(Quad
         .collect();
     let flagged = faces_to_subdivide(n_faces, &failing, &graph.face_links);
     stats.n_subdivided_faces = flagged.iter().filter(|&&f| f).count();
-    let (elements, face_per_element) = greedy_in_flagged_faces((elements, face_per_element), greedy_elements, &flagged);
+    let (elements, face_per_element) = if flagged.contains(&true) {
+        // A face that is subdivided anyway is split from the greedy pairs, the
+        // cheapest (best-shaped) ones, rather than from the pairs augmenting
+        // paths forced (on fandisk those gave 165 irregular vertices and a
+        // quad of scaled Jacobian 10⁻⁵ against 132 and 0.036).
+        let inside = matching_elements(&triangles, &model_face_per_triangle, &graph, &greedy, |f| flagged[f as usize]);
+        let outside = elements.into_iter().zip(face_per_element).filter(|(_, f)| !flagged[*f as usize]);
+        outside.chain(inside.0.into_iter().zip(inside.1)).unzip()
+    } else {
+        (elements, face_per_element)
+    };
     let (quads, model_face_per_quad, n_subdivision_quads) =
         subdivide(&mut vertices, &elements, &face_per_element, &flagged, &mut curve_edges);
     stats.n_subdivision_quads = n_subdivision_quads;
@@ -137,39 +155,31 @@ pub fn recombine(tri: SurfaceTriangulation, progress: &Progress) -> Result<(Quad
     Ok((mesh, stats))
 }
 
-/// The elements of `matched` outside the `flagged` faces, then those of
-/// `greedy` inside them: a face that is subdivided anyway is split from the
-/// greedy pairs, the cheapest (best-shaped) ones, rather than from the
-/// pairs augmenting paths forced (on fandisk those gave 165 irregular
-/// vertices and a quad of scaled Jacobian 10⁻⁵ against 132 and 0.036).
-fn greedy_in_flagged_faces(
-    matched: (Vec<Element>, Vec<u32>),
-    greedy: (Vec<Element>, Vec<u32>),
-    flagged: &[bool],
-) -> (Vec<Element>, Vec<u32>) {
-    if !flagged.contains(&true) {
-        return matched;
-    }
-    let keep = |(_, f): &(Element, u32)| !flagged[*f as usize];
-    let outside = matched.0.into_iter().zip(matched.1).filter(keep);
-    let inside = greedy.0.into_iter().zip(greedy.1).filter(|e| !keep(e));
-    outside.chain(inside).unzip()
-}
-
 /// Pairs in `partner`.
 fn n_pairs(partner: &[u32]) -> usize {
     (0..partner.len()).filter(|&t| partner[t] != NONE && (t as u32) < partner[t]).count()
 }
 
-/// The elements of the matching, in order of their lowest triangle: the
-/// pairs' quads and the free triangles, with their model faces.
-fn elements(tri: &SurfaceTriangulation, graph: &DualGraph, partner: &[u32]) -> (Vec<Element>, Vec<u32>) {
-    let mut elements = Vec::with_capacity(tri.triangles.len() / 2 + 1);
-    let mut faces = Vec::with_capacity(tri.triangles.len() / 2 + 1);
+/// The elements of the matching `partner` in the model faces `keep`
+/// accepts, in order of their lowest triangle: the pairs' quads and the
+/// free triangles, with their model faces (a pair never spans two faces).
+fn matching_elements(
+    triangles: &[[u32; 3]],
+    model_face_per_triangle: &[u32],
+    graph: &DualGraph,
+    partner: &[u32],
+    keep: impl Fn(u32) -> bool,
+) -> (Vec<Element>, Vec<u32>) {
+    let mut elements = Vec::with_capacity(triangles.len() / 2 + 1);
+    let mut faces = Vec::with_capacity(triangles.len() / 2 + 1);
     for (t, &u) in partner.iter().enumerate() {
         let t32 = t as u32;
+        let face = model_face_per_triangle[t];
+        if !keep(face) {
+            continue;
+        }
         let element = if u == NONE {
-            Element::Triangle(tri.triangles[t])
+            Element::Triangle(triangles[t])
         } else if t32 < u {
             match graph.pair_of(t32, u) {
                 Some(p) => Element::Quad(p.quad),
@@ -179,7 +189,7 @@ fn elements(tri: &SurfaceTriangulation, graph: &DualGraph, partner: &[u32]) -> (
             continue;
         };
         elements.push(element);
-        faces.push(tri.model_face_per_triangle[t]);
+        faces.push(face);
     }
     (elements, faces)
 }
