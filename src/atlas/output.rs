@@ -13,8 +13,10 @@
 //!   `curvature_max`, `curvature_min`, `direction_max`, `direction_min`.
 //!   The real-valued arrays are Float32: they are estimates (curvatures,
 //!   their directions, σ2/σ1) whose error is orders of magnitude above
-//!   `f32`'s 6·10⁻⁸, and a viewer gains nothing from Float64; the exact
-//!   values (curvature in `atlas.msh`) stay `f64`.
+//!   `f32`'s 6·10⁻⁸, and a viewer gains nothing from Float64. `atlas.msh`
+//!   writes its curvature rounded to `f32` the same way (in `f64` fields),
+//!   which its gzip representation compresses; positions and `(u, v)` stay
+//!   exact `f64`, since the maps' injectivity depends on them.
 //! - `atlas_uv.vtu`: every patch laid out in its own `(u, v)` plane as points
 //!   `(u, v, 0)`, seam vertices duplicated per patch; cell data `patch`.
 
@@ -22,6 +24,7 @@ use super::build::Atlas;
 use crate::geom::Vec3;
 use crate::io::msh_output::OutputOptions;
 use crate::io::msh41::discrete::{DiscreteModelBuilder, PatchUv};
+use crate::io::msh41::model::f32_precision;
 use crate::io::msh41::write::{Msh41Options, write_msh41};
 use crate::io::vtu::{CellBlock, DataArray, VtuMesh, VtuOptions, write_vtu};
 use crate::io::write_error::WriteError;
@@ -62,7 +65,11 @@ pub fn write_atlas_msh_as(atlas: &Atlas, w: impl Write, opts: &OutputOptions) ->
             .iter()
             .map(|v| {
                 let i = v.idx();
-                [c.direction_max[i] * c.curvature_max[i].abs(), c.direction_min[i] * c.curvature_min[i].abs()]
+                let scaled = |d: Vec3, k: f64| {
+                    let s = d * k.abs();
+                    Vec3::new(f32_precision(s.x), f32_precision(s.y), f32_precision(s.z))
+                };
+                [scaled(c.direction_max[i], c.curvature_max[i]), scaled(c.direction_min[i], c.curvature_min[i])]
             })
             .collect();
         let uv = PatchUv { vertices: p.vertices.clone(), uv: p.uv.clone(), curvature };

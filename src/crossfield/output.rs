@@ -9,8 +9,9 @@
 //! (unit 3D vectors, `v = n × u`, `n` the triangle normal) and `norm`
 //! (`|f|` at the centroid), point data `index` (fraction of a turn, 0 where
 //! regular). All four are Float32 (a unit direction needs no more than
-//! `f32`'s 6·10⁻⁸, and the indices k/4 are exact); `crossfield.msh` keeps
-//! the `f64` values.
+//! `f32`'s 6·10⁻⁸, and the indices k/4 are exact); `crossfield.msh` writes
+//! the same values rounded to `f32` in MSH's `f64` fields
+//! ([`f32_precision`]), which its gzip representation compresses.
 //!
 //! `crossfield.msh`: MSH 4.1, one discrete surface with every vertex and
 //! triangle (tags `i + 1`), and three `$ElementData` views: `cross_u` and
@@ -20,7 +21,7 @@ use super::Crossfield;
 use crate::geom::Vec3;
 use crate::io::WriteError;
 use crate::io::msh_output::{OutputOptions, write_msh};
-use crate::io::msh41::model::{DataView, MshModel};
+use crate::io::msh41::model::{DataView, MshModel, f32_precision};
 use crate::io::vtu::{DataArray, VtuMesh, VtuOptions, write_vtu};
 use crate::mesh::{FaceId, TriMesh};
 use serde::Serialize;
@@ -126,11 +127,11 @@ pub fn write_crossfield_msh_as(
 ) -> Result<(), WriteError> {
     check_sizes(field, mesh)?;
     let mut model = MshModel::from_surface(mesh);
-    let flat = |v: &[Vec3]| v.iter().flat_map(|x| [x.x, x.y, x.z]).collect::<Vec<f64>>();
+    let flat = |v: &[Vec3]| v.iter().flat_map(|x| [x.x, x.y, x.z].map(f32_precision)).collect::<Vec<f64>>();
     model.element_data = vec![
         DataView::contiguous("cross_u", 3, flat(&field.cross_per_face), 1),
         DataView::contiguous("cross_v", 3, flat(&cross_v(field, mesh)), 1),
-        DataView::contiguous("norm", 1, field.norm_per_face.clone(), 1),
+        DataView::contiguous("norm", 1, field.norm_per_face.iter().map(|&x| f32_precision(x)).collect(), 1),
     ];
     write_msh(w, &model, opts)
 }

@@ -226,6 +226,18 @@ impl DataView {
     }
 }
 
+/// `x` rounded to the nearest `f32`, still as an `f64` (values outside the
+/// `f32` range are kept as they are).
+///
+/// For estimates written into MSH's `f64` fields (crossfield directions and
+/// norms, curvatures) whose error is orders of magnitude above `f32`'s
+/// 6·10⁻⁸: their low 29 mantissa bits become zero, which the artifact's gzip
+/// representation compresses, while every reader still gets a plain `f64`.
+pub fn f32_precision(x: f64) -> f64 {
+    let r = x as f32;
+    if r.is_finite() || !x.is_finite() { f64::from(r) } else { x }
+}
+
 /// The polyline map of a discrete curve: point `k` has parameter `u = k`.
 #[derive(Debug, Clone, PartialEq)]
 pub struct CurveParametrization {
@@ -762,6 +774,19 @@ pub(crate) fn check_name(name: &str) -> Result<(), WriteError> {
 mod tests {
     use super::*;
     use crate::mesh::fixtures;
+
+    #[test]
+    fn f32_precision_rounds_in_range_and_keeps_the_rest() {
+        let x = 0.1_f64;
+        assert_eq!(f32_precision(x), f64::from(0.1_f32));
+        assert!((f32_precision(x) - x).abs() <= x * f64::from(f32::EPSILON));
+        assert_eq!(f32_precision(x).to_bits() & ((1 << 29) - 1), 0);
+        assert_eq!(f32_precision(1e300), 1e300);
+        assert_eq!(f32_precision(-1e300), -1e300);
+        assert_eq!(f32_precision(f64::INFINITY), f64::INFINITY);
+        assert!(f32_precision(f64::NAN).is_nan());
+        assert_eq!(f32_precision(-0.0).to_bits(), (-0.0_f64).to_bits());
+    }
 
     #[test]
     fn convenience_models_are_valid() {
