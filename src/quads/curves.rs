@@ -13,7 +13,7 @@
 //! segments, at equal arc length; their vertices lie inside a model face
 //! and are not on feature curves.
 
-use std::collections::HashMap;
+use std::collections::{HashMap, HashSet};
 
 use super::error::QuadsError;
 use super::model::QuadModel;
@@ -213,16 +213,23 @@ fn atlas_min_segments(atlas: &Atlas) -> Vec<usize> {
 }
 
 /// Indices of the chain vertices where a feature curve's pieces end: its
-/// ends, atlas corners (`corners`, sorted), sharp turns, and vertices
+/// ends, atlas corners (`corners`, sorted), the vertices in `kept`, sharp
+/// turns, and vertices
 /// farther from the chord of their two polyline neighbours than
 /// [`CHORD_SAGITTA_FRACTION`] of `width` (the smallest area-over-perimeter
 /// of the model faces the curve bounds): a chord over such a vertex would
 /// cut a thin face across.
-fn piece_ends(surface: &TriMesh, corners: &[VertexId], verts: &[VertexId], width: f64) -> Vec<usize> {
+fn piece_ends(
+    surface: &TriMesh,
+    corners: &[VertexId],
+    kept: &HashSet<VertexId>,
+    verts: &[VertexId],
+    width: f64,
+) -> Vec<usize> {
     let m = verts.len() - 1;
     let mut ends = vec![0];
     for i in 1..m {
-        let corner = corners.binary_search(&verts[i]).is_ok();
+        let corner = corners.binary_search(&verts[i]).is_ok() || kept.contains(&verts[i]);
         let (p, q, r) = (surface.position(verts[i - 1]), surface.position(verts[i]), surface.position(verts[i + 1]));
         let turn = angle_between(&(q - p), &(r - q)).to_degrees();
         let sagitta = (q - p).cross(&(r - p)).norm() / (r - p).norm();
@@ -273,7 +280,8 @@ fn distribute(n: usize, lengths: &[f64], mins: &[usize]) -> Vec<usize> {
 type CurvePieces = (Vec<usize>, Vec<f64>, Vec<usize>, Vec<f64>);
 
 /// Discretize the feature curves of `model` and the seams of `atlas` at
-/// `size` (see the module documentation).
+/// `size` (see the module documentation); every surface vertex of `kept`
+/// on a curve or seam becomes a boundary vertex.
 ///
 /// # Errors
 /// [`QuadsError::Triangulation`] when a curve does not lie on the atlas
@@ -285,6 +293,7 @@ pub fn discretize_boundaries(
     model: &QuadModel,
     size: f64,
     sizes: &SizeMap,
+    kept: &HashSet<VertexId>,
 ) -> Result<BoundaryMesh, QuadsError> {
     let n_surface = surface.n_vertices();
     let mut atlas_edge = HashMap::new();
@@ -319,7 +328,7 @@ pub fn discretize_boundaries(
         let verts = &curve.vertices;
         let s = arc_lengths(surface, sizes, size, verts);
         let width = model.faces_per_curve[c].iter().map(|&f| widths[f as usize]).fold(f64::INFINITY, f64::min);
-        let ends = piece_ends(surface, &atlas.corners, verts, width);
+        let ends = piece_ends(surface, &atlas.corners, kept, verts, width);
         let lengths: Vec<f64> = ends.windows(2).map(|w| s[w[1]] - s[w[0]]).collect();
         let mut mins = Vec::with_capacity(lengths.len());
         for w in ends.windows(2) {
@@ -409,19 +418,37 @@ pub fn discretize_boundaries(
         let face = model.face_per_triangle[topo.edge_faces(e0)[0].idx()];
         let s = arc_lengths(surface, sizes, size, verts);
         let len = s[s.len() - 1];
-        let n = ((len / size).round() as usize).max(atlas_min[ac]);
         for v in [verts[0], verts[verts.len() - 1]] {
             if !b.at_vertex.contains_key(&v) {
                 let g = b.vertex(v, ModelEntity::Face(face))?;
                 b.out.seam_vertices.push(g);
             }
         }
+        // Pieces between the kept vertices, at least one segment each.
+        let m = verts.len() - 1;
+        let ends: Vec<usize> =
+            std::iter::once(0).chain((1..m).filter(|&i| kept.contains(&verts[i]))).chain(std::iter::once(m)).collect();
+        let lengths: Vec<f64> = ends.windows(2).map(|w| s[w[1]] - s[w[0]]).collect();
+        let mins = if ends.len() == 2 { vec![atlas_min[ac]] } else { vec![1; lengths.len()] };
+        let n = ((len / size).round() as usize).max(mins.iter().sum());
+        let counts = distribute(n, &lengths, &mins);
         let mut edge = 0usize;
-        for j in 1..n {
-            let (i, p) = point_at(verts, &s, len * j as f64 / n as f64, &mut edge);
-            let g = b.push(p, ModelEntity::Face(face))?;
-            b.out.seam_vertices.push(g);
-            b.inside[ac].push((i as f64 + p.t, g));
+        for (k, w) in ends.windows(2).enumerate() {
+            for j in 1..counts[k] {
+                let at = s[w[0]] + lengths[k] * j as f64 / counts[k] as f64;
+                let (i, p) = point_at(verts, &s, at, &mut edge);
+                let g = b.push(p, ModelEntity::Face(face))?;
+                b.out.seam_vertices.push(g);
+                b.inside[ac].push((i as f64 + p.t, g));
+            }
+            if w[1] < m {
+                let new = !b.at_vertex.contains_key(&verts[w[1]]);
+                let g = b.vertex(verts[w[1]], ModelEntity::Face(face))?;
+                if new {
+                    b.out.seam_vertices.push(g);
+                }
+                b.inside[ac].push((w[1] as f64, g));
+            }
         }
     }
 
@@ -466,9 +493,9 @@ mod tests {
         // Two sides of a sliver 4 long and 0.01 wide at its apex: its
         // area over perimeter is 0.02 / 8 = 0.0025.
         let (mesh, verts) = polyline(&[Vec3::zeros(), Vec3::new(2.0, 0.01, 0.0), Vec3::new(4.0, 0.0, 0.0)]);
-        assert_eq!(piece_ends(&mesh, &[], &verts, 0.0025), vec![0, 1, 2]);
+        assert_eq!(piece_ends(&mesh, &[], &HashSet::new(), &verts, 0.0025), vec![0, 1, 2]);
         // The same turn on a wide face is crossed by a chord.
-        assert_eq!(piece_ends(&mesh, &[], &verts, 1.0), vec![0, 2]);
+        assert_eq!(piece_ends(&mesh, &[], &HashSet::new(), &verts, 1.0), vec![0, 2]);
     }
 
     #[test]
@@ -481,7 +508,7 @@ mod tests {
             })
             .collect();
         let (mesh, verts) = polyline(&points);
-        assert_eq!(piece_ends(&mesh, &[], &verts, 0.5), vec![0, 12]);
+        assert_eq!(piece_ends(&mesh, &[], &HashSet::new(), &verts, 0.5), vec![0, 12]);
     }
 
     #[test]

@@ -33,7 +33,7 @@ use super::size_map::{SizeMap, conformal_size_map, curvature_bounded_sizes};
 use super::surface_mesh::{ModelEntity, SurfacePoint, SurfaceTriangulation};
 use crate::atlas::{Atlas, AtlasPatch};
 use crate::crossfield::Crossfield;
-use crate::geom::{Vec2, Vec3};
+use crate::geom::{Vec2, Vec3, orient2d};
 use crate::mesh::{Topology, TriMesh, VertexId};
 use crate::progress::Progress;
 
@@ -59,6 +59,11 @@ pub struct TriangulationStats {
     /// Frontal candidates that fell outside every triangle kept (points in
     /// the slivers between the boundary polyline and the patch), dropped.
     pub n_dropped_points: usize,
+    /// Rounds in which the curves were discretized again with a smaller
+    /// size near boundary segments that crossed in a patch's `(u, v)` plane.
+    pub n_boundary_refinements: usize,
+    /// Crossing segment pairs found over those rounds.
+    pub n_boundary_crossings: usize,
 }
 
 /// A vertex of one patch's triangulation: a boundary vertex (global id) or
@@ -103,7 +108,26 @@ pub fn surface_triangulation(
         return Err(QuadsError::InvalidOption { name: "size", reason: format!("must be positive, got {size}") });
     }
     let sizes = curvature_bounded_sizes(conformal_size_map(surface, topo, field, size)?, surface, topo, model, size);
-    let boundary = discretize_boundaries(surface, topo, atlas, model, size, &sizes)?;
+    let mut kept = HashSet::new();
+    let mut boundary = discretize_boundaries(surface, topo, atlas, model, size, &sizes, &kept)?;
+    let mut refinements = (0, 0);
+    for round in 0..MAX_BOUNDARY_REFINEMENTS {
+        progress.check()?;
+        let crossings: Vec<Vec<[u32; 4]>> = atlas
+            .patches
+            .par_iter()
+            .enumerate()
+            .map(|(i, patch)| Ok(boundary_crossings(&patch_boundary(atlas, &boundary, patch, i)?)))
+            .collect::<Result<_, QuadsError>>()?;
+        let crossings: Vec<[u32; 4]> = crossings.into_iter().flatten().collect();
+        if crossings.is_empty() {
+            break;
+        }
+        refinements.0 += 1;
+        refinements.1 += crossings.len();
+        keep_near_crossings(surface, topo, &boundary, &crossings, (round + 1) as f64, &mut kept);
+        boundary = discretize_boundaries(surface, topo, atlas, model, size, &sizes, &kept)?;
+    }
     progress.check()?;
     progress.set(0.1);
     let outs: Vec<Result<PatchOut, QuadsError>> = atlas
@@ -121,6 +145,7 @@ pub fn surface_triangulation(
         outs_ok.push(o?);
     }
     let (tri, mut stats) = merge(surface, boundary, outs_ok);
+    (stats.n_boundary_refinements, stats.n_boundary_crossings) = refinements;
     stats.seconds = start.elapsed().as_secs_f64();
     progress.set(1.0);
     Ok((tri, stats))
@@ -134,27 +159,30 @@ fn boundary_uv(boundary: &BoundaryMesh, local: &HashMap<VertexId, u32>, patch: &
     Some(a * (1.0 - p.t) + b * p.t)
 }
 
-/// Triangulates patch `index` (see the module documentation).
-#[allow(clippy::too_many_arguments)]
-fn triangulate_patch(
-    surface: &TriMesh,
-    atlas: &Atlas,
-    field: &Crossfield,
-    model: &QuadModel,
-    boundary: &BoundaryMesh,
-    index: usize,
-    patch: &AtlasPatch,
-    sizes: &SizeMap,
-    progress: &Progress,
-) -> Result<PatchOut, QuadsError> {
-    let fail = |reason: String| QuadsError::Triangulation { patch: index, reason };
-    if patch.triangles.is_empty() {
-        return Ok(PatchOut::default());
-    }
-    let chart = PatchChart::new(surface, atlas, patch);
-    let local: HashMap<VertexId, u32> = patch.vertices.iter().enumerate().map(|(i, &v)| (v, i as u32)).collect();
+/// A patch's boundary polygon in its `(u, v)` plane.
+struct PatchBoundary {
+    /// Global id of each boundary point.
+    ids: Vec<u32>,
+    /// `(u, v)` of each boundary point.
+    uv: Vec<Vec2>,
+    /// Polygon segments (outer loop and holes) as pairs of point indices.
+    segments: Vec<[usize; 2]>,
+    /// Surface vertices on the patch's atlas curves.
+    on_boundary: HashSet<VertexId>,
+}
 
-    // Boundary points and polygon segments.
+/// The boundary polygon of patch `index`: the discretized atlas curves that
+/// bound it, each point once.
+///
+/// # Errors
+/// [`QuadsError::Triangulation`] when a boundary point is not on the patch.
+fn patch_boundary(
+    atlas: &Atlas,
+    boundary: &BoundaryMesh,
+    patch: &AtlasPatch,
+    index: usize,
+) -> Result<PatchBoundary, QuadsError> {
+    let local: HashMap<VertexId, u32> = patch.vertices.iter().enumerate().map(|(i, &v)| (v, i as u32)).collect();
     let mut ids: Vec<u32> = Vec::new();
     let mut slot: HashMap<u32, usize> = HashMap::new();
     let mut segments: Vec<[usize; 2]> = Vec::new();
@@ -176,10 +204,112 @@ fn triangulate_patch(
             prev = Some(k);
         }
     }
+    let uv = ids
+        .iter()
+        .map(|&g| {
+            boundary_uv(boundary, &local, patch, g).ok_or_else(|| QuadsError::Triangulation {
+                patch: index,
+                reason: format!("boundary vertex {g} does not lie on the patch"),
+            })
+        })
+        .collect::<Result<Vec<Vec2>, QuadsError>>()?;
+    Ok(PatchBoundary { ids, uv, segments, on_boundary })
+}
+
+/// The pairs of segments of a patch's boundary polygon that cross or touch
+/// in `(u, v)` (sharing no end), as the global ids of their four ends. A
+/// chord of a discretized curve can cut across a thin part of the patch (a
+/// hole close to the outer boundary) that the atlas' finer edges go
+/// around; the constrained triangulation cannot take such a polygon.
+/// Segments are swept in order of their smallest `u`.
+fn boundary_crossings(pb: &PatchBoundary) -> Vec<[u32; 4]> {
+    let uv = &pb.uv;
+    let span = |s: &[usize; 2]| (uv[s[0]].x.min(uv[s[1]].x), uv[s[0]].x.max(uv[s[1]].x));
+    let mut order: Vec<usize> = (0..pb.segments.len()).collect();
+    order.sort_by(|&i, &j| span(&pb.segments[i]).0.total_cmp(&span(&pb.segments[j]).0).then(i.cmp(&j)));
+    let mut active: Vec<usize> = Vec::new();
+    let mut out = Vec::new();
+    for &i in &order {
+        let [a, b] = pb.segments[i];
+        let lo = span(&pb.segments[i]).0;
+        active.retain(|&j| span(&pb.segments[j]).1 >= lo);
+        for &j in &active {
+            let [c, d] = pb.segments[j];
+            if [c, d].contains(&a) || [c, d].contains(&b) {
+                continue;
+            }
+            let o1 = orient2d(&uv[a], &uv[b], &uv[c]) * orient2d(&uv[a], &uv[b], &uv[d]);
+            let o2 = orient2d(&uv[c], &uv[d], &uv[a]) * orient2d(&uv[c], &uv[d], &uv[b]);
+            if o1 <= 0.0 && o2 <= 0.0 {
+                out.push([a, b, c, d].map(|k| pb.ids[k]));
+            }
+        }
+        active.push(i);
+    }
+    out
+}
+
+/// Rounds of [`keep_near_crossings`] before a crossing boundary is an
+/// error.
+const MAX_BOUNDARY_REFINEMENTS: usize = 4;
+
+/// Adds to `kept` the surface vertices within `reach` times the longer
+/// segment's length of each crossing's ends: the atlas-curve vertices among
+/// them become boundary vertices in the next discretization, so there the
+/// polygon follows the atlas' own edges, which do not cross (the maps are
+/// one-to-one). Returns the vertices added.
+fn keep_near_crossings(
+    surface: &TriMesh,
+    topo: &Topology,
+    boundary: &BoundaryMesh,
+    crossings: &[[u32; 4]],
+    reach: f64,
+    kept: &mut HashSet<VertexId>,
+) -> usize {
+    let before = kept.len();
+    for g in crossings {
+        let p = g.map(|x| boundary.vertices.positions[x as usize]);
+        let radius = reach * (p[1] - p[0]).norm().max((p[3] - p[2]).norm());
+        let near = |x: &Vec3| p.iter().any(|q| (x - q).norm() <= radius);
+        let mut stack: Vec<VertexId> =
+            g.iter().flat_map(|&x| [boundary.location[x as usize].a, boundary.location[x as usize].b]).collect();
+        let mut seen: HashSet<VertexId> = stack.iter().copied().collect();
+        while let Some(v) = stack.pop() {
+            kept.insert(v);
+            for f in topo.vertex_faces(v) {
+                for &w in &surface.triangles[f.idx()] {
+                    if near(surface.position(w)) && seen.insert(w) {
+                        stack.push(w);
+                    }
+                }
+            }
+        }
+    }
+    kept.len() - before
+}
+
+/// Triangulates patch `index` (see the module documentation).
+#[allow(clippy::too_many_arguments)]
+fn triangulate_patch(
+    surface: &TriMesh,
+    atlas: &Atlas,
+    field: &Crossfield,
+    model: &QuadModel,
+    boundary: &BoundaryMesh,
+    index: usize,
+    patch: &AtlasPatch,
+    sizes: &SizeMap,
+    progress: &Progress,
+) -> Result<PatchOut, QuadsError> {
+    let fail = |reason: String| QuadsError::Triangulation { patch: index, reason };
+    if patch.triangles.is_empty() {
+        return Ok(PatchOut::default());
+    }
+    let chart = PatchChart::new(surface, atlas, patch);
+    let local: HashMap<VertexId, u32> = patch.vertices.iter().enumerate().map(|(i, &v)| (v, i as u32)).collect();
+    let PatchBoundary { ids, uv: boundary_uvs, segments, on_boundary } = patch_boundary(atlas, boundary, patch, index)?;
     let mut points: Vec<ChartPoint> = Vec::with_capacity(ids.len());
-    for &g in &ids {
-        let uv = boundary_uv(boundary, &local, patch, g)
-            .ok_or_else(|| fail(format!("boundary vertex {g} does not lie on the patch")))?;
+    for (&g, &uv) in ids.iter().zip(&boundary_uvs) {
         let (tri, bary) =
             chart.locate_near(&uv).ok_or_else(|| fail(format!("boundary vertex {g} is outside the patch chart")))?;
         points.push(ChartPoint { uv, tri, bary });
@@ -694,6 +824,68 @@ mod tests {
             }
         }
         assert!(count.values().all(|&c| c == 2));
+    }
+
+    #[test]
+    fn crossing_and_touching_boundary_segments_are_found_and_shared_ends_are_not() {
+        // A unit square (ids 10..13) and two more segments: 20–21 crosses
+        // the square's bottom side, 22–23 ends on its top side.
+        let uv = [[0.0, 0.0], [1.0, 0.0], [1.0, 1.0], [0.0, 1.0], [0.5, -0.5], [0.5, 0.5], [0.2, 1.0], [0.2, 2.0]];
+        let pb = PatchBoundary {
+            ids: vec![10, 11, 12, 13, 20, 21, 22, 23],
+            uv: uv.iter().map(|p| Vec2::new(p[0], p[1])).collect(),
+            segments: vec![[0, 1], [1, 2], [2, 3], [3, 0], [4, 5], [6, 7]],
+            on_boundary: HashSet::new(),
+        };
+        let mut found: Vec<[u32; 4]> = boundary_crossings(&pb)
+            .into_iter()
+            .map(|[a, b, c, d]| if a < c { [a, b, c, d] } else { [c, d, a, b] })
+            .collect();
+        found.sort_unstable();
+        assert_eq!(found, vec![[10, 11, 20, 21], [12, 13, 22, 23]]);
+        // The square alone: consecutive sides share ends, nothing crosses.
+        let square = PatchBoundary { segments: pb.segments[..4].to_vec(), ..pb };
+        assert!(boundary_crossings(&square).is_empty());
+    }
+
+    #[test]
+    fn kept_vertices_of_seams_and_curves_become_boundary_vertices() {
+        // The cube's atlas curves are feature curves, the sphere's are seams.
+        for mesh in [fixtures::cube(6), fixtures::icosphere(3)] {
+            kept_vertices_become_boundary_vertices(&setup(mesh));
+        }
+    }
+
+    fn kept_vertices_become_boundary_vertices(s: &Setup) {
+        assert!(!s.atlas.curves.is_empty());
+        let size = 0.4;
+        let sizes = SizeMap::uniform(s.mesh.n_vertices(), size);
+        let plain = discretize_boundaries(&s.mesh, &s.topo, &s.atlas, &s.model, size, &sizes, &HashSet::new())
+            .expect("discretize");
+        // Every chain vertex of every atlas curve (feature curves and seams).
+        let kept: HashSet<VertexId> = s.atlas.curves.iter().flat_map(|c| c.chain.vertices.iter().copied()).collect();
+        let all = discretize_boundaries(&s.mesh, &s.topo, &s.atlas, &s.model, size, &sizes, &kept).expect("discretize");
+        for (ac, curve) in s.atlas.curves.iter().enumerate() {
+            let at: HashSet<VertexId> = all.per_atlas_curve[ac]
+                .iter()
+                .map(|&g| all.location[g as usize])
+                .filter(|p| p.a == p.b || p.t == 0.0)
+                .map(|p| p.a)
+                .collect();
+            assert!(curve.chain.vertices.iter().all(|v| at.contains(v)), "atlas curve {ac}");
+            assert!(all.per_atlas_curve[ac].len() >= plain.per_atlas_curve[ac].len());
+        }
+        // Parity still holds, and the patches still triangulate.
+        let mut per_face = vec![0usize; s.model.n_faces];
+        for (c, &n) in all.segments_per_curve.iter().enumerate() {
+            for &f in &s.model.faces_per_curve[c] {
+                per_face[f as usize] += n;
+            }
+        }
+        assert!(per_face.iter().all(|n| n % 2 == 0), "{per_face:?}");
+        for (i, patch) in s.atlas.patches.iter().enumerate() {
+            assert!(boundary_crossings(&patch_boundary(&s.atlas, &all, patch, i).expect("boundary")).is_empty());
+        }
     }
 
     #[test]
