@@ -1,7 +1,8 @@
 //! Bench harness (issue 2 §7): runs the meshatlas pipeline (release build)
 //! on the files given on the command line, one child process per file, and
 //! prints per-step wall time (each stage's `<stage>.write` and the final
-//! `write` included), the bytes of every artifact written with their total,
+//! `write` included), the bytes of every artifact written with their total
+//! (on disk, and as gzip and zstd downloads),
 //! and peak memory; with `--gmsh` it runs Gmsh's
 //! Python API on the same file (`benches/gmsh_reference.py`) and prints the
 //! time ratio per step.
@@ -249,14 +250,44 @@ fn generate(spec: &str) -> Result<PathBuf, String> {
     Ok(path)
 }
 
-/// One row per artifact (`bytes NAME`, in MB) and their total.
-fn print_artifacts(name: &str, tris: &str, artifacts: &[(String, u64)]) {
+/// One row per artifact (`bytes NAME`, in MB: on disk, then as a download
+/// with `Content-Encoding: gzip` and `zstd`, made by the server's own
+/// encoders) and their totals.
+fn print_artifacts(name: &str, tris: &str, out: &Path, artifacts: &[(String, u64)]) {
     let mb = |b: u64| format!("{:.2} MB", b as f64 / 1e6);
+    let tmp = out.join(".wire.tmp");
+    let encoded = |file: &str, gzip: bool| {
+        let src = out.join(file);
+        let made = if gzip {
+            meshatlas::io::gzip::gzip_file(&src, &tmp)
+        } else {
+            meshatlas::io::zstandard::zstd_file(&src, &tmp, meshatlas::io::zstandard::pool_workers())
+        };
+        made.ok()
+    };
+    let (mut total, mut total_gz, mut total_zst) = (0, 0, 0);
     for (file, bytes) in artifacts {
-        println!("{name:<28} {tris:>10} {:<30} {:>14}", format!("bytes {file}"), mb(*bytes));
+        let (gz, zst) = (encoded(file, true), encoded(file, false));
+        total += bytes;
+        total_gz += gz.unwrap_or(*bytes);
+        total_zst += zst.unwrap_or(*bytes);
+        let wire = |b: Option<u64>| b.map_or_else(|| "-".into(), mb);
+        println!(
+            "{name:<28} {tris:>10} {:<30} {:>14} gzip {:>10} zstd {:>10}",
+            format!("bytes {file}"),
+            mb(*bytes),
+            wire(gz),
+            wire(zst)
+        );
     }
-    let total: u64 = artifacts.iter().map(|(_, b)| b).sum();
-    println!("{name:<28} {tris:>10} {:<30} {:>14}", "bytes (all artifacts)", mb(total));
+    let _ = std::fs::remove_file(&tmp);
+    println!(
+        "{name:<28} {tris:>10} {:<30} {:>14} gzip {:>10} zstd {:>10}",
+        "bytes (all artifacts)",
+        mb(total),
+        mb(total_gz),
+        mb(total_zst)
+    );
 }
 
 /// A `meshatlas serve` child on a free loopback port with its own data
@@ -454,7 +485,7 @@ fn main() {
         if let Some(t) = ours.total_seconds {
             println!("{name:<28} {tris:>10} {:<12} {t:>12.4} {:>12} {:>8}", "total", "-", "");
         }
-        print_artifacts(&name, &tris, &ours.artifacts);
+        print_artifacts(&name, &tris, &out, &ours.artifacts);
         println!(
             "{name:<28} {tris:>10} {:<12} {:>12.4} {:>12} {:>8}",
             "wall",

@@ -13,9 +13,10 @@ use tower::ServiceExt;
 
 use super::AppState;
 use super::auth::Scope;
+use super::encoding::{self, Coding};
 use super::error::ApiError;
 use super::upload::{self, SubmitQuery};
-use super::{encoding, page, range};
+use super::{page, range};
 use crate::failure::FailureKind;
 use crate::jobs::{JobId, JobRecord, JobsError, NewJob, model::rfc3339};
 use crate::pipeline::parse_params;
@@ -422,17 +423,17 @@ fn range_not_satisfiable(range: &str, served: &Response) -> Response {
     resp
 }
 
-/// The gzip representation of the artifact at `path` (made on first use,
-/// see [`encoding`]), served with `Content-Encoding: gzip`.
-async fn serve_gzip(path: &std::path::Path, req: &Parts) -> Result<Response, ApiError> {
+/// The `coding` representation of the artifact at `path` (made on first
+/// use, see [`encoding`]), served with its `Content-Encoding`.
+async fn serve_encoded(path: &std::path::Path, req: &Parts, coding: Coding) -> Result<Response, ApiError> {
     let src = path.to_path_buf();
-    let gz = tokio::task::spawn_blocking(move || encoding::ensure_gzip(&src))
+    let enc = tokio::task::spawn_blocking(move || encoding::ensure_encoded(&src, coding))
         .await
         .map_err(ApiError::internal)?
-        .map_err(|e| ApiError::internal(format!("cannot gzip {}: {e}", path.display())))?;
-    let mut resp = serve_file(&gz, req, None).await?;
+        .map_err(|e| ApiError::internal(format!("cannot {}-encode {}: {e}", coding.token(), path.display())))?;
+    let mut resp = serve_file(&enc, req, None).await?;
     if resp.status().is_success() || resp.status() == StatusCode::NOT_MODIFIED {
-        resp.headers_mut().insert(header::CONTENT_ENCODING, HeaderValue::from_static("gzip"));
+        resp.headers_mut().insert(header::CONTENT_ENCODING, HeaderValue::from_static(coding.token()));
     }
     Ok(resp)
 }
@@ -469,7 +470,7 @@ fn presigned_redirect(url: &str) -> Response {
 /// `GET /v1/jobs/{id}/artifacts/{name}`: the file, with one byte range at
 /// most (RFC 9110: unknown units, invalid or multiple ranges give the whole
 /// file; a stale `If-Range` too). Without `Range`, a client whose
-/// `Accept-Encoding` allows gzip gets the gzip representation; see
+/// `Accept-Encoding` allows zstd or gzip gets that representation; see
 /// [`encoding`]. With `?redirect=1` and an S3 artifact store, a 307 to a
 /// presigned URL of the object (valid
 /// [`crate::jobs::service::PRESIGNED_URL_SECS`]) instead.
@@ -489,8 +490,11 @@ pub async fn get_artifact(
     }
     let (path, art) = st.jobs.artifact(id, name).await?;
     let (req, _) = req.into_parts();
-    let gzip = !req.headers.contains_key(header::RANGE) && encoding::accepts_gzip(&req.headers);
-    let mut resp = if gzip { serve_gzip(&path, &req).await? } else { serve_identity(&path, &req).await? };
+    let coding = if req.headers.contains_key(header::RANGE) { None } else { encoding::negotiate(&req.headers) };
+    let mut resp = match coding {
+        Some(coding) => serve_encoded(&path, &req, coding).await?,
+        None => serve_identity(&path, &req).await?,
+    };
     resp.headers_mut().insert(header::VARY, HeaderValue::from_static("accept-encoding"));
     if resp.status().is_success() {
         if let Ok(v) = HeaderValue::from_str(&art.media_type) {

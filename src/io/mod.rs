@@ -37,6 +37,7 @@ pub mod stl_write;
 pub(crate) mod text_out;
 pub mod vtu;
 pub mod write_error;
+pub mod zstandard;
 
 pub use error::{IoError, Location};
 pub use format::Format;

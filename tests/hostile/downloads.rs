@@ -1,8 +1,10 @@
-//! Artifact downloads with `Content-Encoding: gzip` (issue 12 §2): a client
-//! that accepts gzip gets fewer bytes that decode to the file; a range, or a
+//! Artifact downloads with `Content-Encoding: zstd` or `gzip` (issue 12 §2):
+//! a client that accepts either gets fewer bytes that decode to the file
+//! (zstd when it weighs zstd at least as high as gzip); a range, or a
 //! client without `Accept-Encoding`, gets the identity bytes with their own
 //! `Content-Length` and `ETag`; every answer says `Vary: Accept-Encoding`.
-//! reqwest (with its `gzip` feature) decodes the encoded downloads.
+//! reqwest (with its `gzip` feature) and `curl --compressed` decode the
+//! encoded downloads.
 
 use std::io::Read;
 use std::time::Duration;
@@ -110,4 +112,67 @@ async fn reqwest_decodes_the_gzip_download_of_msh_and_vtu() {
     assert_eq!(header(&r, "vary").as_deref(), Some("accept-encoding"));
     let decoded = r.bytes().await.unwrap().to_vec();
     assert!(decoded.len() as u64 == bytes && decoded == identity, "atlas.vtu decodes to the identity bytes");
+}
+
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn zstd_is_sent_when_weighed_at_least_as_high_as_gzip() {
+    let s = Server::start(&[]);
+    let job = finished_job(&s).await;
+    for name in ["atlas.msh", "atlas.vtu", "report.json"] {
+        let (url, bytes) = artifact(&s, &job, name);
+        let plain = s.client.get(&url).send().await.unwrap();
+        let plain_etag = header(&plain, "etag").unwrap();
+        let identity = plain.bytes().await.unwrap().to_vec();
+        let gz = s.client.get(&url).header("accept-encoding", "gzip").send().await.unwrap();
+        let gz_etag = header(&gz, "etag").unwrap();
+        let gz_len = gz.bytes().await.unwrap().len();
+
+        for accept in ["gzip, deflate, br, zstd", "zstd;q=0.5, gzip;q=0.5", "zstd", "*"] {
+            let z = s.client.get(&url).header("accept-encoding", accept).send().await.unwrap();
+            assert_eq!(z.status(), 200, "{name} {accept}");
+            assert_eq!(header(&z, "content-encoding").as_deref(), Some("zstd"), "{name} {accept}");
+            assert_eq!(header(&z, "vary").as_deref(), Some("accept-encoding"), "{name}");
+            let etag = header(&z, "etag").unwrap();
+            assert!(etag != plain_etag && etag != gz_etag, "{name}: each representation has its own ETag");
+            let body = z.bytes().await.unwrap().to_vec();
+            assert!(body.len() < identity.len(), "{name}: zstd {} >= identity {bytes}", body.len());
+            assert!(zstd::decode_all(&body[..]).unwrap() == identity, "{name}: the zstd body decodes to the file");
+            if name == "atlas.msh" {
+                assert!(body.len() < gz_len, "{name}: zstd {} >= gzip {gz_len}", body.len());
+            }
+        }
+        // gzip weighed higher, or zstd refused, gives gzip.
+        for accept in ["gzip;q=1, zstd;q=0.5", "zstd;q=0, *"] {
+            let r = s.client.get(&url).header("accept-encoding", accept).send().await.unwrap();
+            assert_eq!(header(&r, "content-encoding").as_deref(), Some("gzip"), "{name} {accept}");
+        }
+        // A range still addresses the identity bytes.
+        let r = s.client.get(&url).header("accept-encoding", "zstd").header("range", "bytes=0-9").send().await.unwrap();
+        assert_eq!(r.status(), 206, "{name}");
+        assert_eq!(header(&r, "content-encoding"), None, "{name}");
+    }
+}
+
+/// `curl --compressed` (it asks for every coding its libcurl decodes; Debian's
+/// has zstd) gets a download that decodes to the identity bytes.
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn curl_decodes_the_compressed_download() {
+    let s = Server::start(&[]);
+    let job = finished_job(&s).await;
+    let (url, _) = artifact(&s, &job, "atlas.msh");
+    let identity = s.client.get(&url).send().await.unwrap().bytes().await.unwrap().to_vec();
+    let dir = tempfile::tempdir().unwrap();
+    let (body, head) = (dir.path().join("body"), dir.path().join("head"));
+    let mut cmd = std::process::Command::new("curl");
+    cmd.args(["--silent", "--show-error", "--fail", "--compressed", "--dump-header"])
+        .arg(&head)
+        .arg("--output")
+        .arg(&body);
+    let out = cmd.arg(&url).output().expect("curl runs");
+    assert!(out.status.success(), "curl: {}", String::from_utf8_lossy(&out.stderr));
+    let head = std::fs::read_to_string(&head).unwrap().to_ascii_lowercase();
+    let version = std::process::Command::new("curl").arg("--version").output().unwrap();
+    let coding = if String::from_utf8_lossy(&version.stdout).contains("zstd/") { "zstd" } else { "gzip" };
+    assert!(head.contains(&format!("content-encoding: {coding}")), "{head}");
+    assert!(std::fs::read(&body).unwrap() == identity, "curl decodes to the identity bytes");
 }
