@@ -98,12 +98,12 @@ pub fn gzip_file(src: &Path, dst: &Path) -> std::io::Result<u64> {
 }
 
 #[cfg(test)]
-mod tests {
+pub(crate) mod tests {
     use super::*;
     use flate2::read::GzDecoder;
 
     /// Bytes that compress a little (a ramp with noise), `n` long.
-    fn sample(n: usize) -> Vec<u8> {
+    pub(crate) fn sample(n: usize) -> Vec<u8> {
         let mut x = 12345u64;
         (0..n)
             .map(|i| {

@@ -8,7 +8,6 @@
 //! overlap keeps most of the one-thread ratio, which independent frames
 //! lose (see `docs/decisions.md`, session 17).
 
-use std::io::Write;
 use std::path::Path;
 
 use ::zstd::stream::write::Encoder;
@@ -31,8 +30,7 @@ pub const WINDOW_LOG: u32 = 22;
 pub fn zstd_file(src: &Path, dst: &Path, workers: u32) -> std::io::Result<u64> {
     let mut input = std::fs::File::open(src)?;
     let len = input.metadata()?.len();
-    let out = std::fs::File::create(dst)?;
-    let mut enc = Encoder::new(std::io::BufWriter::new(out), LEVEL)?;
+    let mut enc = Encoder::new(std::fs::File::create(dst)?, LEVEL)?;
     enc.multithread(workers.max(1))?;
     enc.set_parameter(CParameter::WindowLog(WINDOW_LOG))?;
     enc.include_checksum(true)?;
@@ -41,8 +39,7 @@ pub fn zstd_file(src: &Path, dst: &Path, workers: u32) -> std::io::Result<u64> {
     if copied != len {
         return Err(std::io::Error::other(format!("{} changed length while it was compressed", src.display())));
     }
-    let mut out = enc.finish()?.into_inner().map_err(std::io::IntoInnerError::into_error)?;
-    out.flush()?;
+    let out = enc.finish()?;
     out.sync_all()?;
     Ok(out.metadata()?.len())
 }
@@ -56,17 +53,7 @@ pub fn pool_workers() -> u32 {
 #[cfg(test)]
 mod tests {
     use super::*;
-
-    /// Bytes that compress a little (a ramp with noise), `n` long.
-    fn sample(n: usize) -> Vec<u8> {
-        let mut x = 12345u64;
-        (0..n)
-            .map(|i| {
-                x = x.wrapping_mul(6364136223846793005).wrapping_add(1442695040888963407);
-                (i / 7) as u8 ^ ((x >> 60) as u8)
-            })
-            .collect()
-    }
+    use crate::io::gzip::tests::sample;
 
     fn compress(data: &[u8], workers: u32) -> Vec<u8> {
         let dir = tempfile::tempdir().unwrap();
