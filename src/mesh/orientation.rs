@@ -6,11 +6,13 @@
 //! flipped, so the count reported is the fewest flips that make the
 //! component consistent. A component whose walk finds a contradiction is
 //! non-orientable (a Möbius band); it is left as the walk made it and
-//! reported. Closed, orientable components with negative enclosed volume are
-//! then reversed as a whole so normals point outward.
+//! reported. A component with no inconsistent interior edge (checked first,
+//! on the pool) needs no walk. Closed, orientable components with negative
+//! enclosed volume are then reversed as a whole so normals point outward.
 
 use super::components::{Components, connected_components};
-use super::{FaceId, Topology, TriMesh};
+use super::{EdgeId, FaceId, Topology, TriMesh};
+use rayon::prelude::*;
 use serde::Serialize;
 use std::collections::VecDeque;
 
@@ -37,41 +39,26 @@ pub fn orient_consistently(mesh: &mut TriMesh, topo: &mut Topology) -> Orientati
 /// topology computes them once: flipping triangles changes no component.
 pub fn orient_components(mesh: &mut TriMesh, topo: &mut Topology, comps: &Components) -> OrientationReport {
     let mut report = OrientationReport::default();
+    let needs_walk = components_with_inconsistent_edges(mesh, topo, comps);
     let mut flip = vec![false; mesh.n_faces()];
     let mut seen = vec![false; mesh.n_faces()];
-    let mut queue = VecDeque::new();
-    for faces in comps.faces_per_component() {
-        let mut consistent = true;
-        seen[faces[0].idx()] = true;
-        queue.push_back(faces[0]);
-        while let Some(f) = queue.pop_front() {
-            for i in 0..3 {
-                let Some(g) = topo.face_across(f, i) else {
-                    continue;
-                };
-                let same_dir = traverses_same_direction(mesh, topo, f, i, g);
-                let want = flip[f.idx()] ^ same_dir;
-                if seen[g.idx()] {
-                    consistent &= flip[g.idx()] == want;
-                } else {
-                    seen[g.idx()] = true;
-                    flip[g.idx()] = want;
-                    queue.push_back(g);
+    for (c, faces) in comps.faces_per_component().into_iter().enumerate() {
+        // A component without an inconsistent edge walks to no flip: skipped.
+        if needs_walk[c] {
+            let walk = walk_flip_bits(mesh, topo, &faces, &mut flip, &mut seen);
+            let n_flip = faces.iter().filter(|f| flip[f.idx()]).count();
+            let invert = 2 * n_flip > faces.len();
+            for f in &faces {
+                if flip[f.idx()] != invert {
+                    mesh.flip_face(*f);
+                    topo.flip_face(*f);
+                    report.n_triangles_flipped += 1;
                 }
             }
-        }
-        let n_flip = faces.iter().filter(|f| flip[f.idx()]).count();
-        let invert = 2 * n_flip > faces.len();
-        for f in &faces {
-            if flip[f.idx()] != invert {
-                mesh.flip_face(*f);
-                topo.flip_face(*f);
-                report.n_triangles_flipped += 1;
+            if !walk {
+                report.n_nonorientable_components += 1;
+                continue;
             }
-        }
-        if !consistent {
-            report.n_nonorientable_components += 1;
-            continue;
         }
         if is_closed(topo, &faces) && component_volume(mesh, &faces) < 0.0 {
             for f in &faces {
@@ -86,6 +73,56 @@ pub fn orient_components(mesh: &mut TriMesh, topo: &mut Topology, comps: &Compon
     report
 }
 
+/// Per component, true when one of its interior edges is traversed in the
+/// same direction by both its triangles; edges checked on the pool. Most
+/// uploads are consistent already, and this check costs one pass where
+/// the breadth-first walk costs a queue and random access per triangle.
+fn components_with_inconsistent_edges(mesh: &TriMesh, topo: &Topology, comps: &Components) -> Vec<bool> {
+    let faces: Vec<FaceId> = (0..topo.n_edges())
+        .into_par_iter()
+        .filter_map(|e| match topo.edge_faces(EdgeId::new(e)) {
+            [f, g] => {
+                let i = topo.local_edge(*f, EdgeId::new(e)).expect("own edge");
+                traverses_same_direction(mesh, topo, *f, i, *g).then_some(*f)
+            }
+            _ => None,
+        })
+        .collect();
+    let mut needs = vec![false; comps.n_components];
+    for f in faces {
+        needs[comps.component_per_face[f.idx()] as usize] = true;
+    }
+    needs
+}
+
+/// Breadth-first walk over the interior edges of one component (`faces`,
+/// increasing ids) from its first triangle, setting `flip` so that every
+/// triangle agrees with the one it was reached from; returns false when
+/// the walk meets a contradiction (non-orientable).
+fn walk_flip_bits(mesh: &TriMesh, topo: &Topology, faces: &[FaceId], flip: &mut [bool], seen: &mut [bool]) -> bool {
+    let mut consistent = true;
+    let mut queue = VecDeque::new();
+    seen[faces[0].idx()] = true;
+    queue.push_back(faces[0]);
+    while let Some(f) = queue.pop_front() {
+        for i in 0..3 {
+            let Some(g) = topo.face_across(f, i) else {
+                continue;
+            };
+            let same_dir = traverses_same_direction(mesh, topo, f, i, g);
+            let want = flip[f.idx()] ^ same_dir;
+            if seen[g.idx()] {
+                consistent &= flip[g.idx()] == want;
+            } else {
+                seen[g.idx()] = true;
+                flip[g.idx()] = want;
+                queue.push_back(g);
+            }
+        }
+    }
+    consistent
+}
+
 /// True when triangle `g` traverses local edge `i` of `f` in the same direction as `f`.
 fn traverses_same_direction(mesh: &TriMesh, topo: &Topology, f: FaceId, i: usize, g: FaceId) -> bool {
     let e = topo.face_edges[f.idx()][i];
@@ -95,26 +132,34 @@ fn traverses_same_direction(mesh: &TriMesh, topo: &Topology, f: FaceId, i: usize
 
 /// True when every edge of these triangles has exactly two triangles.
 fn is_closed(topo: &Topology, faces: &[FaceId]) -> bool {
-    faces.iter().all(|f| topo.face_edges[f.idx()].iter().all(|&e| topo.edge_valence(e) == 2))
+    faces.par_iter().all(|f| topo.face_edges[f.idx()].iter().all(|&e| topo.edge_valence(e) == 2))
 }
 
-/// Signed volume enclosed by the given triangles.
+/// Signed volume enclosed by the given triangles, summed in fixed chunks
+/// on the pool and then in chunk order, so the value (and the sign that
+/// decides a reversal) does not depend on the thread count.
 fn component_volume(mesh: &TriMesh, faces: &[FaceId]) -> f64 {
-    faces
-        .iter()
-        .map(|f| {
-            let [a, b, c] = mesh.corners(*f);
-            a.dot(&b.cross(&c)) / 6.0
+    let chunk_sums: Vec<f64> = faces
+        .par_chunks(1 << 14)
+        .map(|chunk| {
+            chunk
+                .iter()
+                .map(|f| {
+                    let [a, b, c] = mesh.corners(*f);
+                    a.dot(&b.cross(&c)) / 6.0
+                })
+                .sum()
         })
-        .sum()
+        .collect();
+    chunk_sums.iter().sum()
 }
 
 /// Number of interior edges whose two triangles traverse them in the same direction.
 pub fn n_inconsistent_edges(mesh: &TriMesh, topo: &Topology) -> usize {
     (0..topo.n_edges())
-        .filter(|&e| match topo.edge_faces(super::EdgeId::new(e)) {
+        .filter(|&e| match topo.edge_faces(EdgeId::new(e)) {
             [f, g] => {
-                let i = topo.local_edge(*f, super::EdgeId::new(e)).expect("own edge");
+                let i = topo.local_edge(*f, EdgeId::new(e)).expect("own edge");
                 traverses_same_direction(mesh, topo, *f, i, *g)
             }
             _ => false,
@@ -151,6 +196,32 @@ mod tests {
         assert_eq!(r.n_triangles_flipped, 0);
         assert_eq!(r.n_components_reversed_outward, 1);
         assert!(m.signed_volume() > 0.0);
+    }
+
+    #[test]
+    fn only_the_component_with_a_disagreement_is_walked() {
+        let one = fixtures::icosphere(2);
+        let n = one.n_faces();
+        let shift = crate::geom::Vec3::new(5.0, 0.0, 0.0);
+        let positions = one.positions.iter().copied().chain(one.positions.iter().map(|p| *p + shift)).collect();
+        let nv = one.n_vertices() as u32;
+        let triangles: Vec<[u32; 3]> = one
+            .triangles
+            .iter()
+            .map(|t| t.map(|v| v.0))
+            .chain(one.triangles.iter().map(|t| [t[0].0 + nv, t[2].0 + nv, t[1].0 + nv]))
+            .collect();
+        // First copy: outward with two triangles flipped; second: consistent but inward.
+        let mut m = TriMesh::from_raw(positions, &triangles);
+        m.flip_face(FaceId::new(5));
+        m.flip_face(FaceId::new(9));
+        let mut t = Topology::new(&m);
+        let r = orient_consistently(&mut m, &mut t);
+        assert_eq!(r.n_triangles_flipped, 2);
+        assert_eq!(r.n_components_reversed_outward, 1);
+        assert_eq!(n_inconsistent_edges(&m, &t), 0);
+        let volume = |faces: std::ops::Range<usize>| component_volume(&m, &faces.map(FaceId::new).collect::<Vec<_>>());
+        assert!(volume(0..n) > 0.0 && volume(n..2 * n) > 0.0);
     }
 
     #[test]
