@@ -10,7 +10,7 @@
 //! is the minimum over its corners. A surface quad is also measured against
 //! its own normals ([`surface_quad_scaled_jacobian`]), Gmsh's among them.
 
-use super::surface_mesh::{ModelEntity, SurfaceVertices};
+use super::surface_mesh::{ModelEntity, SurfacePoint, SurfaceVertices};
 use crate::geom::Vec3;
 use crate::mesh::TriMesh;
 
@@ -74,16 +74,30 @@ pub fn surface_quad_scaled_jacobian(p: &[Vec3; 4], n: &Vec3) -> f64 {
 /// another face, whose normal may point elsewhere); the quad's own
 /// (Newell) normal when all four corners lie on curves or corners.
 pub fn quad_reference_normal(vertices: &SurfaceVertices, surface: &TriMesh, quad: &[u32; 4]) -> Vec3 {
+    reference_normal_of_corners(surface, &quad.map(|v| corner_of(vertices, v)))
+}
+
+/// What the reference normal reads of a quad corner: its model entity,
+/// where it lies on the input, its position.
+pub type QuadCorner = (ModelEntity, SurfacePoint, Vec3);
+
+/// Corner data of vertex `v`.
+pub fn corner_of(vertices: &SurfaceVertices, v: u32) -> QuadCorner {
+    (vertices.entity[v as usize], vertices.on_surface[v as usize], vertices.positions[v as usize])
+}
+
+/// [`quad_reference_normal`] of a quad given by its corners' data (so that
+/// a corner can be evaluated at a trial position without moving it).
+pub fn reference_normal_of_corners(surface: &TriMesh, corners: &[QuadCorner; 4]) -> Vec3 {
     let mut n = Vec3::zeros();
-    for &v in quad {
-        if matches!(vertices.entity[v as usize], ModelEntity::Face(_)) {
-            n += surface.face_normal(vertices.on_surface[v as usize].face);
+    for (entity, on_surface, _) in corners {
+        if matches!(entity, ModelEntity::Face(_)) {
+            n += surface.face_normal(on_surface.face);
         }
     }
     if n.norm_squared() == 0.0 {
         for i in 0..4 {
-            let (a, b) = (vertices.positions[quad[i] as usize], vertices.positions[quad[(i + 1) % 4] as usize]);
-            n += a.cross(&b);
+            n += corners[i].2.cross(&corners[(i + 1) % 4].2);
         }
     }
     let len = n.norm();

@@ -234,8 +234,14 @@ pub struct BlossomSearch<'a> {
     parent: Vec<u32>,
     base: Vec<u32>,
     used: Vec<bool>,
-    in_blossom: Vec<bool>,
-    seen: Vec<bool>,
+    /// Vertices the search has reached (outer or inner), each once: the
+    /// only ones a blossom contraction can relabel.
+    reached: Vec<u32>,
+    /// Marks of the current blossom and of the current base search are
+    /// stamps (equal to `stamp`), so no mark array is cleared per blossom.
+    in_blossom: Vec<u32>,
+    seen: Vec<u32>,
+    stamp: u32,
     queue: VecDeque<u32>,
 }
 
@@ -249,24 +255,35 @@ impl<'a> BlossomSearch<'a> {
             parent: vec![NONE; n],
             base: (0..n as u32).collect(),
             used: vec![false; n],
-            in_blossom: vec![false; n],
-            seen: vec![false; n],
+            reached: Vec::new(),
+            in_blossom: vec![0; n],
+            seen: vec![0; n],
+            stamp: 0,
             queue: VecDeque::new(),
         }
     }
 
     /// The free vertex an augmenting path from the free vertex `root` ends
     /// at, the path stored in `parent` / `mate`; `None` when there is none.
+    ///
+    /// A contraction relabels only the reached vertices whose base is in
+    /// the blossom, in increasing index order (the order of a scan of all
+    /// vertices, so the path found is the same), and marks are stamps:
+    /// the search costs `O(reached · blossoms)` instead of
+    /// `O(window · blossoms)`, which on windows of 65536 triangles with
+    /// few reached was most of the matching's time (`docs/decisions.md`).
     pub fn augmenting_path_end(&mut self, root: u32) -> Option<u32> {
-        let n = self.adjacency.len();
         self.used.fill(false);
         self.parent.fill(NONE);
         for (i, b) in self.base.iter_mut().enumerate() {
             *b = i as u32;
         }
+        self.reached.clear();
         self.used[root as usize] = true;
+        self.reached.push(root);
         self.queue.clear();
         self.queue.push_back(root);
+        let mut relabel = Vec::new();
         while let Some(v) = self.queue.pop_front() {
             for &to in self.adjacency[v as usize].iter().filter(|&&to| to != NONE) {
                 if self.base[v as usize] == self.base[to as usize] || self.mate[v as usize] == to {
@@ -276,25 +293,33 @@ impl<'a> BlossomSearch<'a> {
                     || (self.mate[to as usize] != NONE && self.parent[self.mate[to as usize] as usize] != NONE);
                 if to_is_outer {
                     let base = self.lowest_common_base(v, to);
-                    self.in_blossom.fill(false);
+                    self.next_stamp();
                     self.mark_path(v, base, to);
                     self.mark_path(to, base, v);
-                    for i in 0..n {
-                        if self.in_blossom[self.base[i] as usize] {
-                            self.base[i] = base;
-                            if !self.used[i] {
-                                self.used[i] = true;
-                                self.queue.push_back(i as u32);
-                            }
+                    relabel.clear();
+                    relabel.extend(
+                        self.reached
+                            .iter()
+                            .copied()
+                            .filter(|&i| self.in_blossom[self.base[i as usize] as usize] == self.stamp),
+                    );
+                    relabel.sort_unstable();
+                    for &i in &relabel {
+                        self.base[i as usize] = base;
+                        if !self.used[i as usize] {
+                            self.used[i as usize] = true;
+                            self.queue.push_back(i);
                         }
                     }
                 } else if self.parent[to as usize] == NONE {
                     self.parent[to as usize] = v;
+                    self.reached.push(to);
                     let m = self.mate[to as usize];
                     if m == NONE {
                         return Some(to);
                     }
                     self.used[m as usize] = true;
+                    self.reached.push(m);
                     self.queue.push_back(m);
                 }
             }
@@ -302,14 +327,24 @@ impl<'a> BlossomSearch<'a> {
         None
     }
 
+    /// A fresh stamp for the marks (cleared for real once in 2³² uses).
+    fn next_stamp(&mut self) {
+        self.stamp = self.stamp.wrapping_add(1);
+        if self.stamp == 0 {
+            self.in_blossom.fill(0);
+            self.seen.fill(0);
+            self.stamp = 1;
+        }
+    }
+
     /// The base of the blossom closed by the edge `a`–`b`: the first common
     /// base on their alternating paths to the root.
     fn lowest_common_base(&mut self, a: u32, b: u32) -> u32 {
-        self.seen.fill(false);
+        self.next_stamp();
         let mut a = a;
         loop {
             a = self.base[a as usize];
-            self.seen[a as usize] = true;
+            self.seen[a as usize] = self.stamp;
             let m = self.mate[a as usize];
             if m == NONE {
                 break;
@@ -319,7 +354,7 @@ impl<'a> BlossomSearch<'a> {
         let mut b = b;
         loop {
             b = self.base[b as usize];
-            if self.seen[b as usize] {
+            if self.seen[b as usize] == self.stamp {
                 return b;
             }
             b = self.parent[self.mate[b as usize] as usize];
@@ -331,8 +366,8 @@ impl<'a> BlossomSearch<'a> {
     fn mark_path(&mut self, mut v: u32, base: u32, mut child: u32) {
         while self.base[v as usize] != base {
             let m = self.mate[v as usize];
-            self.in_blossom[self.base[v as usize] as usize] = true;
-            self.in_blossom[self.base[m as usize] as usize] = true;
+            self.in_blossom[self.base[v as usize] as usize] = self.stamp;
+            self.in_blossom[self.base[m as usize] as usize] = self.stamp;
             self.parent[v as usize] = child;
             child = m;
             v = self.parent[m as usize];

@@ -5,8 +5,11 @@
 //! 1. Every vertex is projected onto its model entity
 //!    ([`SurfaceProjector::project`]): this fixes the approximate surface
 //!    points of midpoint-subdivision vertices.
-//! 2. `iterations` Gauss–Seidel sweeps over the vertices in index order
-//!    (sequential, so the result does not depend on the thread count):
+//! 2. `iterations` Gauss–Seidel sweeps, colour class by colour class: the
+//!    vertices are coloured greedily in index order so that no two of a
+//!    class share a quad; a class's moves read only vertices of other
+//!    classes, so they are decided on the pool and applied together, and
+//!    the result does not depend on the thread count:
 //!    - a face vertex moves towards the mean of its edge neighbours, the
 //!      displacement taken in the tangent plane of the input triangle under
 //!      it, then projected onto its model face;
@@ -27,12 +30,13 @@ use std::time::Instant;
 use serde::Serialize;
 
 use super::error::QuadsError;
-use super::jacobian::{quad_reference_normal, surface_quad_scaled_jacobian};
+use super::jacobian::{corner_of, quad_reference_normal, reference_normal_of_corners, surface_quad_scaled_jacobian};
 use super::projection::{Projection, SurfaceProjector};
 use super::surface_mesh::{ModelEntity, QuadMesh, SurfaceVertices};
 use crate::geom::Vec3;
 use crate::mesh::TriMesh;
 use crate::progress::Progress;
+use rayon::prelude::*;
 
 /// Fractions of the full step tried, in order, until one is accepted.
 const STEP_FRACTIONS: [f64; 3] = [1.0, 0.5, 0.25];
@@ -117,7 +121,7 @@ fn sj_summary(mesh: &QuadMesh, surface: &TriMesh) -> (Option<f64>, Option<f64>) 
     if mesh.quads.is_empty() {
         return (None, None);
     }
-    let sj: Vec<f64> = mesh.quads.iter().map(|q| quad_scaled_jacobian(&mesh.vertices, surface, q)).collect();
+    let sj: Vec<f64> = mesh.quads.par_iter().map(|q| quad_scaled_jacobian(&mesh.vertices, surface, q)).collect();
     let min = sj.iter().copied().fold(f64::INFINITY, f64::min);
     (Some(min), Some(sj.iter().sum::<f64>() / sj.len() as f64))
 }
@@ -126,9 +130,12 @@ fn sj_summary(mesh: &QuadMesh, surface: &TriMesh) -> (Option<f64>, Option<f64>) 
 /// surface point) and returns the largest distance moved.
 pub fn project_all(mesh: &mut QuadMesh, projector: &SurfaceProjector) -> f64 {
     let v = &mut mesh.vertices;
+    let projected: Vec<Projection> = (0..v.len())
+        .into_par_iter()
+        .map(|i| projector.project(v.entity[i], &v.positions[i], &v.on_surface[i]))
+        .collect();
     let mut worst: f64 = 0.0;
-    for i in 0..v.len() {
-        let p = projector.project(v.entity[i], &v.positions[i], &v.on_surface[i]);
+    for (i, p) in projected.into_iter().enumerate() {
         worst = worst.max((p.position - v.positions[i]).norm());
         v.positions[i] = p.position;
         v.on_surface[i] = p.on_surface;
@@ -137,11 +144,14 @@ pub fn project_all(mesh: &mut QuadMesh, projector: &SurfaceProjector) -> f64 {
 }
 
 /// Per vertex: the quads around it and its edge neighbours; per curve
-/// vertex: its neighbours along curve edges of its own curve.
+/// vertex: its neighbours along curve edges of its own curve; the colour
+/// classes of the sweeps.
 struct Rings {
     quads: Vec<Vec<u32>>,
     neighbours: Vec<Vec<u32>>,
     curve_neighbours: Vec<Vec<u32>>,
+    /// Vertices with quads, by colour, increasing ids within a class.
+    classes: Vec<Vec<u32>>,
 }
 
 impl Rings {
@@ -173,35 +183,89 @@ impl Rings {
             list.sort_unstable();
             list.dedup();
         }
-        Self { quads, neighbours, curve_neighbours }
+        let classes = colour_classes(mesh, &quads);
+        Self { quads, neighbours, curve_neighbours, classes }
     }
 }
 
-/// One Gauss–Seidel sweep; returns `(accepted, rejected)` move counts.
-fn sweep_once(mesh: &mut QuadMesh, projector: &SurfaceProjector, rings: &Rings) -> (u64, u64) {
-    let (mut accepted, mut rejected) = (0, 0);
-    for v in 0..mesh.vertices.len() {
-        if rings.quads[v].is_empty() {
+/// Greedy colouring in index order of the vertices that have quads: each
+/// takes the smallest colour no vertex of its quads has yet, so no two
+/// vertices of a class share a quad (a move changes only its own quads and
+/// reads only their corners, so a class's moves are independent).
+fn colour_classes(mesh: &QuadMesh, quads_of: &[Vec<u32>]) -> Vec<Vec<u32>> {
+    let mut colour = vec![u32::MAX; quads_of.len()];
+    let mut classes: Vec<Vec<u32>> = Vec::new();
+    let mut taken: Vec<bool> = Vec::new();
+    for (v, quads) in quads_of.iter().enumerate() {
+        if quads.is_empty() {
             continue;
         }
-        let Some(target) = smoothing_target(mesh, projector, rings, v) else { continue };
-        let x = mesh.vertices.positions[v];
-        let ring = &rings.neighbours[v];
-        let local: f64 = ring.iter().map(|&w| (mesh.vertices.positions[w as usize] - x).norm()).sum::<f64>()
-            / ring.len().max(1) as f64;
-        for f in STEP_FRACTIONS {
-            let Some(candidate) = candidate_at(mesh, projector, v, &target, f) else { break };
-            if (candidate.position - x).norm() <= MIN_STEP * local {
-                break;
+        taken.clear();
+        for &q in quads {
+            for &w in &mesh.quads[q as usize] {
+                let c = colour[w as usize];
+                if c != u32::MAX {
+                    if taken.len() <= c as usize {
+                        taken.resize(c as usize + 1, false);
+                    }
+                    taken[c as usize] = true;
+                }
             }
-            if try_move(mesh, projector.surface, &rings.quads[v], v, candidate) {
+        }
+        let c = taken.iter().position(|t| !t).unwrap_or(taken.len());
+        colour[v] = c as u32;
+        if classes.len() <= c {
+            classes.resize(c + 1, Vec::new());
+        }
+        classes[c].push(v as u32);
+    }
+    classes
+}
+
+/// One Gauss–Seidel sweep, class by class; returns `(accepted, rejected)`
+/// move counts.
+fn sweep_once(mesh: &mut QuadMesh, projector: &SurfaceProjector, rings: &Rings) -> (u64, u64) {
+    let (mut accepted, mut rejected) = (0, 0);
+    for class in &rings.classes {
+        let decided: Vec<(Option<Projection>, u64)> =
+            class.par_iter().map(|&v| decide_move(mesh, projector, rings, v as usize)).collect();
+        for (&v, (moved, n_rejected)) in class.iter().zip(decided) {
+            rejected += n_rejected;
+            if let Some(p) = moved {
+                mesh.vertices.positions[v as usize] = p.position;
+                mesh.vertices.on_surface[v as usize] = p.on_surface;
                 accepted += 1;
-                break;
             }
-            rejected += 1;
         }
     }
     (accepted, rejected)
+}
+
+/// Where vertex `v` moves this sweep (the first step fraction the guard
+/// accepts; `None`: it stays) and how many fractions were rejected.
+fn decide_move(mesh: &QuadMesh, projector: &SurfaceProjector, rings: &Rings, v: usize) -> (Option<Projection>, u64) {
+    let Some(target) = smoothing_target(mesh, projector, rings, v) else { return (None, 0) };
+    let x = mesh.vertices.positions[v];
+    let ring = &rings.neighbours[v];
+    let local: f64 =
+        ring.iter().map(|&w| (mesh.vertices.positions[w as usize] - x).norm()).sum::<f64>() / ring.len().max(1) as f64;
+    let quads = &rings.quads[v];
+    let before: Vec<f64> = quads
+        .iter()
+        .map(|&q| quad_scaled_jacobian(&mesh.vertices, projector.surface, &mesh.quads[q as usize]))
+        .collect();
+    let mut rejected = 0;
+    for f in STEP_FRACTIONS {
+        let Some(candidate) = candidate_at(mesh, projector, v, &target, f) else { break };
+        if (candidate.position - x).norm() <= MIN_STEP * local {
+            break;
+        }
+        if move_keeps_quality(mesh, projector.surface, quads, &before, v, &candidate) {
+            return (Some(candidate), rejected);
+        }
+        rejected += 1;
+    }
+    (None, rejected)
 }
 
 /// Where a vertex would go with a full step.
@@ -263,24 +327,44 @@ fn candidate_at(
     }
 }
 
-/// Moves vertex `v` to `candidate` if the worst scaled Jacobian of `quads`
-/// (the quads around `v`) does not decrease and no valid quad among them
-/// becomes invalid; restores `v` otherwise. Returns whether it moved.
-fn try_move(mesh: &mut QuadMesh, surface: &TriMesh, quads: &[u32], v: usize, candidate: Projection) -> bool {
-    let before: Vec<f64> =
-        quads.iter().map(|&q| quad_scaled_jacobian(&mesh.vertices, surface, &mesh.quads[q as usize])).collect();
-    let old = (mesh.vertices.positions[v], mesh.vertices.on_surface[v]);
-    mesh.vertices.positions[v] = candidate.position;
-    mesh.vertices.on_surface[v] = candidate.on_surface;
-    let after: Vec<f64> =
-        quads.iter().map(|&q| quad_scaled_jacobian(&mesh.vertices, surface, &mesh.quads[q as usize])).collect();
-    let min = |s: &[f64]| s.iter().copied().fold(f64::INFINITY, f64::min);
-    let keeps_valid = before.iter().zip(&after).all(|(b, a)| *b <= 0.0 || *a > 0.0);
-    if keeps_valid && min(&after) >= min(&before) {
-        return true;
+/// True when moving vertex `v` to `candidate` keeps the worst scaled
+/// Jacobian of `quads` (the quads around `v`, whose values now are
+/// `before`) from decreasing and makes no valid quad among them invalid.
+/// Nothing is moved: the quads are evaluated with `v`'s corner at the
+/// candidate.
+fn move_keeps_quality(
+    mesh: &QuadMesh,
+    surface: &TriMesh,
+    quads: &[u32],
+    before: &[f64],
+    v: usize,
+    candidate: &Projection,
+) -> bool {
+    let mut min_after = f64::INFINITY;
+    for (&q, &b) in quads.iter().zip(before) {
+        let after = quad_scaled_jacobian_with(&mesh.vertices, surface, &mesh.quads[q as usize], v as u32, candidate);
+        if b > 0.0 && after <= 0.0 {
+            return false;
+        }
+        min_after = min_after.min(after);
     }
-    (mesh.vertices.positions[v], mesh.vertices.on_surface[v]) = old;
-    false
+    min_after >= before.iter().copied().fold(f64::INFINITY, f64::min)
+}
+
+/// [`quad_scaled_jacobian`] with vertex `v` (a corner of `quad`) at `at`.
+fn quad_scaled_jacobian_with(
+    vertices: &SurfaceVertices,
+    surface: &TriMesh,
+    quad: &[u32; 4],
+    v: u32,
+    at: &Projection,
+) -> f64 {
+    let corners = quad.map(|w| {
+        let (entity, on_surface, position) = corner_of(vertices, w);
+        if w == v { (entity, at.on_surface, at.position) } else { (entity, on_surface, position) }
+    });
+    let n = reference_normal_of_corners(surface, &corners);
+    surface_quad_scaled_jacobian(&corners.map(|c| c.2), &n)
 }
 
 #[cfg(test)]
@@ -496,17 +580,46 @@ pub(crate) mod tests {
                     .map(|&q| quad_scaled_jacobian(&m.vertices, &input.surface, &m.quads[q as usize]))
                     .fold(f64::INFINITY, f64::min)
             };
-            let (w0, x0) = (worst(&mesh), mesh.vertices.positions[v]);
-            if try_move(&mut mesh, &input.surface, &rings.quads[v], v, cand) {
+            let w0 = worst(&mesh);
+            let before: Vec<f64> = rings.quads[v]
+                .iter()
+                .map(|&q| quad_scaled_jacobian(&mesh.vertices, &input.surface, &mesh.quads[q as usize]))
+                .collect();
+            if move_keeps_quality(&mesh, &input.surface, &rings.quads[v], &before, v, &cand) {
                 accepted += 1;
+                mesh.vertices.positions[v] = cand.position;
+                mesh.vertices.on_surface[v] = cand.on_surface;
                 assert!(worst(&mesh) >= w0);
                 assert!(worst(&mesh) > 0.0);
             } else {
                 rejected += 1;
-                assert_eq!(mesh.vertices.positions[v], x0);
             }
         }
         assert!(accepted > 0 && rejected > 0, "{accepted} accepted, {rejected} rejected");
+    }
+
+    #[test]
+    fn no_two_vertices_of_a_colour_class_share_a_quad() {
+        let input = Input::new(fixtures::square(6));
+        let n = 7;
+        let mesh = grid_mesh(&input, n, n, false, |i, j| Vec3::new(i as f64 / n as f64, j as f64 / n as f64, 0.0));
+        let rings = Rings::new(&mesh);
+        let mut class_of = vec![None; mesh.vertices.len()];
+        for (c, class) in rings.classes.iter().enumerate() {
+            for &v in class {
+                assert_eq!(class_of[v as usize].replace(c), None, "vertex {v} in two classes");
+            }
+        }
+        assert!(class_of.iter().all(Option::is_some), "every grid vertex has quads and a class");
+        for q in &mesh.quads {
+            for a in 0..4 {
+                for b in a + 1..4 {
+                    assert_ne!(class_of[q[a] as usize], class_of[q[b] as usize], "quad {q:?}");
+                }
+            }
+        }
+        // A regular grid needs exactly four colours.
+        assert_eq!(rings.classes.len(), 4);
     }
 
     #[test]
