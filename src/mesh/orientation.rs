@@ -80,13 +80,7 @@ pub fn orient_components(mesh: &mut TriMesh, topo: &mut Topology, comps: &Compon
 fn components_with_inconsistent_edges(mesh: &TriMesh, topo: &Topology, comps: &Components) -> Vec<bool> {
     let faces: Vec<FaceId> = (0..topo.n_edges())
         .into_par_iter()
-        .filter_map(|e| match topo.edge_faces(EdgeId::new(e)) {
-            [f, g] => {
-                let i = topo.local_edge(*f, EdgeId::new(e)).expect("own edge");
-                traverses_same_direction(mesh, topo, *f, i, *g).then_some(*f)
-            }
-            _ => None,
-        })
+        .filter_map(|e| inconsistent_edge_face(mesh, topo, EdgeId::new(e)))
         .collect();
     let mut needs = vec![false; comps.n_components];
     for f in faces {
@@ -154,17 +148,18 @@ fn component_volume(mesh: &TriMesh, faces: &[FaceId]) -> f64 {
     chunk_sums.iter().sum()
 }
 
+/// One triangle of interior edge `e` when both its triangles traverse it
+/// in the same direction; `None` for a consistent, boundary or
+/// non-manifold edge.
+fn inconsistent_edge_face(mesh: &TriMesh, topo: &Topology, e: EdgeId) -> Option<FaceId> {
+    let [f, g] = topo.edge_faces(e) else { return None };
+    let i = topo.local_edge(*f, e).expect("own edge");
+    traverses_same_direction(mesh, topo, *f, i, *g).then_some(*f)
+}
+
 /// Number of interior edges whose two triangles traverse them in the same direction.
 pub fn n_inconsistent_edges(mesh: &TriMesh, topo: &Topology) -> usize {
-    (0..topo.n_edges())
-        .filter(|&e| match topo.edge_faces(EdgeId::new(e)) {
-            [f, g] => {
-                let i = topo.local_edge(*f, EdgeId::new(e)).expect("own edge");
-                traverses_same_direction(mesh, topo, *f, i, *g)
-            }
-            _ => false,
-        })
-        .count()
+    (0..topo.n_edges()).filter(|&e| inconsistent_edge_face(mesh, topo, EdgeId::new(e)).is_some()).count()
 }
 
 #[cfg(test)]

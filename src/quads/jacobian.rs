@@ -86,6 +86,13 @@ pub fn corner_of(vertices: &SurfaceVertices, v: u32) -> QuadCorner {
     (vertices.entity[v as usize], vertices.on_surface[v as usize], vertices.positions[v as usize])
 }
 
+/// Scaled Jacobian of a quad given by its corners' data against the input
+/// surface's normal under it ([`surface_quad_scaled_jacobian`] against
+/// [`reference_normal_of_corners`]).
+pub fn scaled_jacobian_of_corners(surface: &TriMesh, corners: &[QuadCorner; 4]) -> f64 {
+    surface_quad_scaled_jacobian(&corners.map(|c| c.2), &reference_normal_of_corners(surface, corners))
+}
+
 /// [`quad_reference_normal`] of a quad given by its corners' data (so that
 /// a corner can be evaluated at a trial position without moving it).
 pub fn reference_normal_of_corners(surface: &TriMesh, corners: &[QuadCorner; 4]) -> Vec3 {

@@ -30,7 +30,7 @@ use std::time::Instant;
 use serde::Serialize;
 
 use super::error::QuadsError;
-use super::jacobian::{corner_of, quad_reference_normal, reference_normal_of_corners, surface_quad_scaled_jacobian};
+use super::jacobian::{corner_of, scaled_jacobian_of_corners};
 use super::projection::{Projection, SurfaceProjector};
 use super::surface_mesh::{ModelEntity, QuadMesh, SurfaceVertices};
 use crate::geom::Vec3;
@@ -112,8 +112,7 @@ pub fn smooth(
 /// Scaled Jacobian of quad `quad` of `vertices` against the input surface's
 /// normal under it.
 pub fn quad_scaled_jacobian(vertices: &SurfaceVertices, surface: &TriMesh, quad: &[u32; 4]) -> f64 {
-    let n = quad_reference_normal(vertices, surface, quad);
-    surface_quad_scaled_jacobian(&quad.map(|v| vertices.positions[v as usize]), &n)
+    scaled_jacobian_of_corners(surface, &quad.map(|v| corner_of(vertices, v)))
 }
 
 /// Worst and mean quad scaled Jacobian of `mesh` (`None` without quads).
@@ -363,8 +362,7 @@ fn quad_scaled_jacobian_with(
         let (entity, on_surface, position) = corner_of(vertices, w);
         if w == v { (entity, at.on_surface, at.position) } else { (entity, on_surface, position) }
     });
-    let n = reference_normal_of_corners(surface, &corners);
-    surface_quad_scaled_jacobian(&corners.map(|c| c.2), &n)
+    scaled_jacobian_of_corners(surface, &corners)
 }
 
 #[cfg(test)]
