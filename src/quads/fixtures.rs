@@ -7,8 +7,11 @@
 //! input and their known answers (areas, valences, χ) are those of the
 //! fixture.
 
+use std::collections::HashMap;
+
 use super::model::QuadModel;
-use super::surface_mesh::{ModelEntity, QuadMesh, SurfacePoint, SurfaceVertices};
+use super::surface_mesh::{ModelEntity, QuadMesh, SurfacePoint, SurfaceTriangulation, SurfaceVertices};
+use crate::geom::Vec3;
 use crate::mesh::{FaceId, Topology, TriMesh, VertexId};
 
 /// The quad of triangles `t` and `s` sharing an edge, counter-clockwise as
@@ -119,4 +122,37 @@ pub fn add_midpoint_nodes(mesh: &mut QuadMesh) {
         nodes.push(n);
     }
     mesh.high_order_nodes = Some(nodes);
+}
+
+/// A planar triangulation of `points` (z = 0) with triangles `triangles`
+/// in model faces `faces`, cross along x, normal +z, and every edge used
+/// by one triangle or by two faces made a curve edge (curve 0).
+pub fn planar_triangulation(points: &[[f64; 2]], triangles: Vec<[u32; 3]>, faces: Vec<u32>) -> SurfaceTriangulation {
+    let mut tri = SurfaceTriangulation::default();
+    for (i, p) in points.iter().enumerate() {
+        let sp = SurfacePoint { face: FaceId(i as u32), bary: [1.0, 0.0, 0.0] };
+        tri.vertices.push(Vec3::new(p[0], p[1], 0.0), sp, ModelEntity::Face(0));
+    }
+    // Per undirected edge: (model face, directed edge) of each use.
+    type Uses = Vec<(u32, [u32; 2])>;
+    let mut uses: HashMap<(u32, u32), Uses> = HashMap::new();
+    for (t, tv) in triangles.iter().enumerate() {
+        for i in 0..3 {
+            let (a, b) = (tv[i], tv[(i + 1) % 3]);
+            uses.entry((a.min(b), a.max(b))).or_default().push((faces[t], [a, b]));
+        }
+    }
+    let mut curve: Vec<[u32; 2]> = uses.values().filter(|u| u.len() == 1 || u[0].0 != u[1].0).map(|u| u[0].1).collect();
+    curve.sort_unstable();
+    for &[a, b] in &curve {
+        for v in [a, b] {
+            tri.vertices.entity[v as usize] = ModelEntity::Curve(0);
+        }
+    }
+    tri.curve_edges = curve.into_iter().map(|e| (0, e)).collect();
+    tri.cross_per_triangle = vec![Vec3::x(); triangles.len()];
+    tri.normal_per_triangle = vec![Vec3::z(); triangles.len()];
+    tri.triangles = triangles;
+    tri.model_face_per_triangle = faces;
+    tri
 }

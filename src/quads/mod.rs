@@ -12,7 +12,9 @@
 //! 3. [`triangulation`]: in each atlas patch's `(u, v)` plane, points placed
 //!    frontally along the cross at the target size, a vertex at every
 //!    crossfield singularity, and a constrained Delaunay triangulation;
-//!    the patches' triangulations joined into one [`SurfaceTriangulation`].
+//!    the patches' triangulations joined into one [`SurfaceTriangulation`];
+//!    [`slivers`]: regions of slivers (fans a distorted chart leaves)
+//!    re-triangulated in 3D.
 //! 4. [`recombine`]: triangles paired into quads by alignment and shape,
 //!    completed to a perfect matching, midpoint subdivision as last resort.
 //! 5. [`cleanup`], [`cavity`] and [`smooth`]: valence-2 vertices and 3-3
@@ -49,6 +51,7 @@ pub mod quality;
 pub mod recombine;
 pub mod report;
 pub mod size_map;
+pub mod slivers;
 pub mod smooth;
 pub mod strip;
 pub mod subdivision;

@@ -234,43 +234,9 @@ mod tests {
 
     use super::*;
     use crate::geom::Vec3;
-    use crate::mesh::FaceId;
+    use crate::quads::fixtures::planar_triangulation;
     use crate::quads::jacobian::scaled_jacobian;
-    use crate::quads::surface_mesh::{ModelEntity, SurfacePoint};
-
-    /// A planar triangulation of `points` (z = 0) with triangles `triangles`
-    /// in model faces `faces`, cross along x, normal +z, and every edge used
-    /// by one triangle or by two faces made a curve edge (curve 0).
-    fn planar(points: &[[f64; 2]], triangles: Vec<[u32; 3]>, faces: Vec<u32>) -> SurfaceTriangulation {
-        let mut tri = SurfaceTriangulation::default();
-        for (i, p) in points.iter().enumerate() {
-            let sp = SurfacePoint { face: FaceId(i as u32), bary: [1.0, 0.0, 0.0] };
-            tri.vertices.push(Vec3::new(p[0], p[1], 0.0), sp, ModelEntity::Face(0));
-        }
-        // Per undirected edge: (model face, directed edge) of each use.
-        type Uses = Vec<(u32, [u32; 2])>;
-        let mut uses: HashMap<(u32, u32), Uses> = HashMap::new();
-        for (t, tv) in triangles.iter().enumerate() {
-            for i in 0..3 {
-                let (a, b) = (tv[i], tv[(i + 1) % 3]);
-                uses.entry((a.min(b), a.max(b))).or_default().push((faces[t], [a, b]));
-            }
-        }
-        let mut curve: Vec<[u32; 2]> =
-            uses.values().filter(|u| u.len() == 1 || u[0].0 != u[1].0).map(|u| u[0].1).collect();
-        curve.sort_unstable();
-        for &[a, b] in &curve {
-            for v in [a, b] {
-                tri.vertices.entity[v as usize] = ModelEntity::Curve(0);
-            }
-        }
-        tri.curve_edges = curve.into_iter().map(|e| (0, e)).collect();
-        tri.cross_per_triangle = vec![Vec3::x(); triangles.len()];
-        tri.normal_per_triangle = vec![Vec3::z(); triangles.len()];
-        tri.triangles = triangles;
-        tri.model_face_per_triangle = faces;
-        tri
-    }
+    use crate::quads::surface_mesh::ModelEntity;
 
     /// The `n × n` grid of unit squares, cell `(i, j)` split along the
     /// diagonal from `(i, j)` to `(i+1, j+1)` when `diagonal(i, j)`, else the
@@ -301,7 +267,7 @@ mod tests {
         let positions: Vec<[f64; 2]> = dt.vertices().map(|v| [v.position().x, v.position().y]).collect();
         let triangles: Vec<[u32; 3]> = dt.inner_faces().map(|f| f.vertices().map(|v| v.fix().index() as u32)).collect();
         let n = triangles.len();
-        planar(&positions, triangles, vec![0; n])
+        planar_triangulation(&positions, triangles, vec![0; n])
     }
 
     /// Grid points with the interior ones jittered by ±0.2 (seeded).
@@ -375,7 +341,7 @@ mod tests {
     fn a_grid_of_split_squares_gives_back_exactly_its_squares() {
         let n = 8;
         let (points, triangles) = grid(n, |i, j| (i + j) % 2 == 0);
-        let tri = planar(&points, triangles, vec![0; (2 * n * n) as usize]);
+        let tri = planar_triangulation(&points, triangles, vec![0; (2 * n * n) as usize]);
         let (mesh, stats) = run(&tri);
         let mut got: Vec<[u32; 4]> = mesh.quads.iter().map(|&q| sorted(q)).collect();
         got.sort_unstable();
@@ -438,7 +404,7 @@ mod tests {
     #[test]
     fn an_augmenting_path_pairs_what_greedy_stranded() {
         let (points, triangles) = strip();
-        let tri = planar(&points, triangles, vec![0; 4]);
+        let tri = planar_triangulation(&points, triangles, vec![0; 4]);
         let (mesh, stats) = run(&tri);
         assert_eq!((stats.n_greedy_pairs, stats.n_unmatched_after_greedy), (1, 2));
         assert_eq!((stats.n_matching_pairs, stats.n_augmenting_paths, stats.n_subdivided_faces), (2, 1, 0));
@@ -451,7 +417,7 @@ mod tests {
     fn an_odd_face_is_subdivided_into_quads_and_reported() {
         let (points, mut triangles) = strip();
         triangles.pop();
-        let tri = planar(&points, triangles, vec![0; 3]);
+        let tri = planar_triangulation(&points, triangles, vec![0; 3]);
         let n_curve = tri.curve_edges.len();
         let (mesh, stats) = run(&tri);
         assert_eq!((stats.n_subdivided_faces, stats.n_subdivision_quads, stats.n_quads), (1, 7, 7));
@@ -480,7 +446,7 @@ mod tests {
         triangles.extend([[base, base + 1, base + 2], [base, base + 2, base + 3]]);
         faces.extend([2, 2]);
         assert_eq!(faces.iter().filter(|&&f| f == 1).count() % 2, 1);
-        let tri = planar(&points, triangles, faces);
+        let tri = planar_triangulation(&points, triangles, faces);
         let (mesh, stats) = run(&tri);
         assert_eq!(stats.n_subdivided_faces, 2, "{stats:?}");
         let squares_in_face_2 = mesh.model_face_per_quad.iter().filter(|&&f| f == 2).count();
@@ -501,7 +467,7 @@ mod tests {
                 u32::from(j > i || (j == i && upper))
             })
             .collect();
-        let tri = planar(&points, triangles, faces);
+        let tri = planar_triangulation(&points, triangles, faces);
         let v = |i: u32| i * (n + 1) + i;
         let diagonal: Vec<[u32; 2]> = (0..n).map(|i| [v(i), v(i + 1)]).collect();
         for e in &diagonal {
@@ -534,10 +500,10 @@ mod tests {
     #[test]
     fn inconsistent_input_is_an_error_not_a_panic() {
         let (points, triangles) = strip();
-        let mut tri = planar(&points, triangles, vec![0; 4]);
+        let mut tri = planar_triangulation(&points, triangles, vec![0; 4]);
         tri.cross_per_triangle.pop();
         assert!(matches!(recombine(tri, &Progress::none()), Err(QuadsError::CheckFailed { .. })));
-        let mut tri = planar(&points, vec![[0, 1, 3]], vec![0]);
+        let mut tri = planar_triangulation(&points, vec![[0, 1, 3]], vec![0]);
         tri.triangles[0] = [0, 1, 9];
         assert!(matches!(recombine(tri, &Progress::none()), Err(QuadsError::CheckFailed { .. })));
     }

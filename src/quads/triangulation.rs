@@ -30,6 +30,7 @@ use super::model::QuadModel;
 use super::parity::ParityStats;
 use super::patch_chart::{PatchChart, surface_position};
 use super::size_map::{SizeMap, conformal_size_map, curvature_bounded_sizes};
+use super::slivers::{SliverStats, retriangulate_slivers};
 use super::surface_mesh::{ModelEntity, SurfacePoint, SurfaceTriangulation};
 use crate::atlas::{Atlas, AtlasPatch};
 use crate::crossfield::Crossfield;
@@ -64,6 +65,8 @@ pub struct TriangulationStats {
     pub n_boundary_refinements: usize,
     /// Crossing segment pairs found over those rounds.
     pub n_boundary_crossings: usize,
+    /// Sliver regions re-triangulated in 3D after the merge.
+    pub slivers: SliverStats,
 }
 
 /// A vertex of one patch's triangulation: a boundary vertex (global id) or
@@ -144,7 +147,10 @@ pub fn surface_triangulation(
     for o in outs {
         outs_ok.push(o?);
     }
-    let (tri, mut stats) = merge(surface, boundary, outs_ok);
+    let (mut tri, mut stats) = merge(surface, boundary, outs_ok);
+    stats.slivers = retriangulate_slivers(&mut tri);
+    stats.n_vertices = tri.vertices.len();
+    stats.n_triangles = tri.triangles.len();
     (stats.n_boundary_refinements, stats.n_boundary_crossings) = refinements;
     stats.seconds = start.elapsed().as_secs_f64();
     progress.set(1.0);
