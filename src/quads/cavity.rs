@@ -144,10 +144,14 @@ struct Cavities<'m, 'p> {
     failed: Vec<Option<(usize, Vec3, f64)>>,
     /// Every replaced cavity: the centre and radius of a ball holding it.
     commits: Vec<(Vec3, f64)>,
+    /// The set the current cavity grows in, reused from seed to seed (a
+    /// fresh one per seed costs a pass over every quad and vertex).
+    scratch: QuadSet,
 }
 
 /// A set of quads: its members in the order they joined, a flag per quad
 /// of the mesh for membership, and how many members each vertex is in.
+#[derive(Default)]
 struct QuadSet {
     list: Vec<u32>,
     member: Vec<bool>,
@@ -158,9 +162,19 @@ struct QuadSet {
 }
 
 impl QuadSet {
-    /// The empty set over a mesh of `n_quads` quads and `n_vertices` vertices.
-    fn new(n_quads: usize, n_vertices: usize) -> Self {
-        Self { list: Vec::new(), member: vec![false; n_quads], count: vec![0; n_vertices], vertices: Vec::new() }
+    /// Empties the set, now over a mesh of `n_quads` quads and `n_vertices`
+    /// vertices, resetting only the entries its members touched.
+    fn clear(&mut self, n_quads: usize, n_vertices: usize) {
+        for &q in &self.list {
+            self.member[q as usize] = false;
+        }
+        for &v in &self.vertices {
+            self.count[v as usize] = 0;
+        }
+        self.list.clear();
+        self.vertices.clear();
+        self.member.resize(n_quads, false);
+        self.count.resize(n_vertices, 0);
     }
 
     /// Adds quad `q` with corners `quad` (no effect when it is already in).
@@ -255,6 +269,7 @@ impl<'m, 'p> Cavities<'m, 'p> {
             seed: 0,
             failed: vec![None; n],
             commits: Vec::new(),
+            scratch: QuadSet::default(),
         }
     }
 
@@ -287,7 +302,15 @@ impl<'m, 'p> Cavities<'m, 'p> {
     fn grow_and_remesh(&mut self, seed: u32, stats: &mut CavityStats) -> bool {
         let Some(face) = self.face_of(seed) else { return false };
         self.seed = seed;
-        let mut cavity = QuadSet::new(self.mesh.quads.len(), self.mesh.vertices.len());
+        let mut cavity = std::mem::take(&mut self.scratch);
+        cavity.clear(self.mesh.quads.len(), self.mesh.vertices.len());
+        let done = self.grow_and_remesh_in(&mut cavity, seed, face, stats);
+        self.scratch = cavity;
+        done
+    }
+
+    /// [`Self::grow_and_remesh`] with the cavity grown in `cavity` (empty).
+    fn grow_and_remesh_in(&mut self, cavity: &mut QuadSet, seed: u32, face: u32, stats: &mut CavityStats) -> bool {
         for &q in &self.quads_of[seed as usize] {
             cavity.insert(q, self.mesh.quads[q as usize]);
         }
@@ -295,10 +318,10 @@ impl<'m, 'p> Cavities<'m, 'p> {
             return false;
         }
         for _ in 0..MAX_RINGS {
-            if !self.make_convex(&mut cavity, face) {
+            if !self.make_convex(cavity, face) {
                 break;
             }
-            if let Some(plan) = self.plan(&cavity, face) {
+            if let Some(plan) = self.plan(cavity, face) {
                 if self.apply(&plan) {
                     *stats.remeshed_by_corners.entry(plan.sides.len()).or_default() += 1;
                     stats.remeshed += 1;
@@ -306,7 +329,7 @@ impl<'m, 'p> Cavities<'m, 'p> {
                 }
                 stats.rejected_shape += 1;
             }
-            if !self.add_ring(&mut cavity, face) {
+            if !self.add_ring(cavity, face) {
                 break;
             }
         }
@@ -433,6 +456,11 @@ impl<'m, 'p> Cavities<'m, 'p> {
     /// The pattern plan for convex `cavity`, when it is a disk whose
     /// pattern applies and has fewer irregular vertices inside.
     fn plan(&self, cavity: &QuadSet, face: u32) -> Option<Plan> {
+        // A vertex in one quad of the cavity is a corner of its loop: no
+        // pattern has other than 3 to 5, and counting them needs no loop.
+        if !(3..=5).contains(&cavity.counts().filter(|&(_, k)| k == 1).count()) {
+            return None;
+        }
         let lp = self.boundary_loop(cavity)?;
         let on_loop: HashSet<u32> = lp.iter().copied().collect();
         let inside: Vec<u32> = cavity.vertices.iter().copied().filter(|v| !on_loop.contains(v)).collect();
