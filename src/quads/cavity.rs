@@ -46,7 +46,7 @@ use serde::Serialize;
 use super::cleanup::{compact, quads_around_vertices};
 use super::projection::SurfaceProjector;
 use super::smooth::quad_scaled_jacobian;
-use super::surface_mesh::{ModelEntity, QuadMesh};
+use super::surface_mesh::{ModelEntity, QuadMesh, single_boundary_loop};
 use crate::geom::Vec3;
 
 /// Largest cavity, in quads, a seed may grow to.
@@ -437,19 +437,10 @@ impl<'m, 'p> Cavities<'m, 'p> {
                 first.get_or_insert(a);
             }
         }
-        let start = first?;
-        let mut lp = vec![start];
-        let mut v = next[&start];
-        while v != start {
-            if lp.len() > next.len() {
-                return None;
-            }
-            lp.push(v);
-            v = *next.get(&v)?;
-        }
+        let lp = single_boundary_loop(first?, next.len(), |v| next.get(&v).copied())?;
         let n_vertices = cavity.vertices.len() as i64;
         let (f, nb) = (cavity.len() as i64, next.len() as i64);
-        let disk = lp.len() == next.len() && n_vertices - (4 * f + nb) / 2 + f == 1;
+        let disk = n_vertices - (4 * f + nb) / 2 + f == 1;
         disk.then_some(lp)
     }
 

@@ -33,7 +33,7 @@ use std::collections::{HashMap, HashSet};
 use serde::Serialize;
 
 use super::flips::signed_shape;
-use super::surface_mesh::{ModelEntity, SurfaceTriangulation};
+use super::surface_mesh::{ModelEntity, SurfaceTriangulation, single_boundary_loop};
 use crate::geom::Vec3;
 
 /// A triangle whose [`signed_shape`] is below this seeds a region.
@@ -159,19 +159,7 @@ impl Editor<'_> {
                 }
             }
         }
-        let start = *next.keys().min()?;
-        let mut lp = vec![start];
-        let mut v = next[&start];
-        while v != start {
-            if lp.len() > next.len() {
-                return None;
-            }
-            lp.push(v);
-            v = *next.get(&v)?;
-        }
-        if lp.len() != next.len() {
-            return None;
-        }
+        let lp = single_boundary_loop(*next.keys().min()?, next.len(), |v| next.get(&v).copied())?;
         let on_loop: HashSet<u32> = lp.iter().copied().collect();
         let mut vertices: Vec<u32> = region.iter().flat_map(|&t| self.tri.triangles[t as usize]).collect();
         vertices.sort_unstable();

@@ -126,3 +126,21 @@ pub struct QuadMesh {
     /// [`SurfaceTriangulation::seam_vertices`] (indices follow renumbering).
     pub seam_vertices: Vec<u32>,
 }
+
+/// The loop that follows `next` from `start` back to `start`, when it
+/// passes every one of the `n_edges` boundary edges `next` holds (one
+/// simple loop); `None` when it breaks off, runs longer, or leaves edges
+/// out. Shared by the steps that replace a disk of elements by a new
+/// filling of its boundary.
+pub fn single_boundary_loop(start: u32, n_edges: usize, next: impl Fn(u32) -> Option<u32>) -> Option<Vec<u32>> {
+    let mut lp = vec![start];
+    let mut v = next(start)?;
+    while v != start {
+        if lp.len() > n_edges {
+            return None;
+        }
+        lp.push(v);
+        v = next(v)?;
+    }
+    (lp.len() == n_edges).then_some(lp)
+}
