@@ -73,8 +73,9 @@ fn key(a: u32, b: u32) -> Edge {
     (a.min(b), a.max(b))
 }
 
-/// The triangulation being edited: triangles (`None` once removed) and the
-/// triangles on each edge.
+/// The triangulation being edited: a removed flag per triangle (removed
+/// ones are dropped at the end of the pass), the triangles on each edge,
+/// the curve edges and the vertices no region may remove.
 struct Editor<'a> {
     tri: &'a mut SurfaceTriangulation,
     removed: Vec<bool>,
