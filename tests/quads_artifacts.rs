@@ -75,7 +75,7 @@ print(json.dumps({"error": r.GetErrorCode(), "log": open(log).read() if os.path.
 /// The quad mesh of a fixture's cells and its feature model.
 fn quads_of(surface: &TriMesh) -> (QuadMesh, QuadModel) {
     let topo = Topology::new(surface);
-    let model = quad_model(&topo, &detect_features(surface, &topo, 30.0));
+    let model = quad_model(surface, &topo, &detect_features(surface, &topo, 30.0));
     (quads_from_triangle_pairs(surface, &topo, &model), model)
 }
 

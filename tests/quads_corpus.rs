@@ -48,18 +48,22 @@ const INPUTS: &[(&str, &str, Plan)] = &[
     ("corpus", "gmsh_lever.stl", Plan::Run),
     ("corpus", "plate_holes.stl", Plan::Run),
     ("corpus", "featuretype.stl", Plan::Run),
-    ("corpus", "adis16480.stl", Plan::Fails("270 inverted quads of 40717 (faces narrower than the quad size)")),
+    ("corpus", "adis16480.stl", Plan::Fails("204 inverted quads of 40447 (faces narrower than the quad size)")),
     ("corpus", "fandisk.obj", Plan::Run),
     (
         "corpus",
         "cow.obj",
-        Plan::Fails("3 inverted quads of 32620 (next to a 95° input edge below the feature threshold)"),
+        Plan::Fails("6 inverted quads of 31938 (next to a 95° input edge below the feature threshold)"),
     ),
-    ("corpus", "camelhead.obj", Plan::Fails("227 inverted quads of 41858 (the mouth: two surfaces 2 mm apart)")),
+    ("corpus", "camelhead.obj", Plan::Fails("96 inverted quads of 41108 (the mouth: two surfaces 2 mm apart)")),
     ("corpus", "fault_santa_monica_bay.obj", Plan::Run),
     ("corpus", "fault_opal_mound.obj", Plan::Run),
     ("corpus", "fault_ridgecrest_2019.obj", Plan::Run),
-    ("corpus", "bunny.obj", Plan::TooSlow("12–17 s in the dev profile; fails today too (inverted quads)")),
+    (
+        "corpus",
+        "bunny.obj",
+        Plan::TooSlow("passes; 19 s in a release build, more than the CI budget in the dev profile"),
+    ),
 ];
 
 /// Input formats the folders hold; other files (notes, atlases) are not inputs.
@@ -172,6 +176,12 @@ fn the_quads_stage_passes_its_checks_and_gmsh_on_the_corpus() {
 #[ignore = "known failures of issue 13, listed in INPUTS"]
 fn the_quads_stage_passes_on_the_known_failures() {
     check_inputs("quads_corpus_failing", |p| matches!(p, Plan::Fails(_)));
+}
+
+#[test]
+#[ignore = "inputs left out of CI for their run time, listed in INPUTS"]
+fn the_quads_stage_passes_on_the_slow_inputs() {
+    check_inputs("quads_corpus_slow", |p| matches!(p, Plan::TooSlow(_)));
 }
 
 #[test]

@@ -102,6 +102,17 @@ pub fn model_faces(topo: &Topology, features: &Features) -> Components {
 /// Corners, chains and the chain of each edge, for the edges flagged in
 /// `is_feature` (feature edges here, patch borders for the atlas curves).
 pub(crate) fn edge_chains(topo: &Topology, is_feature: &[bool]) -> (Vec<VertexId>, Vec<FeatureCurve>, Vec<u32>) {
+    edge_chains_with_corners(topo, is_feature, &[])
+}
+
+/// [`edge_chains`] with the vertices flagged in `forced` (indexed by
+/// vertex; shorter means unflagged) made corners too, so that a chain is
+/// split there although the vertex continues it.
+pub(crate) fn edge_chains_with_corners(
+    topo: &Topology,
+    is_feature: &[bool],
+    forced: &[bool],
+) -> (Vec<VertexId>, Vec<FeatureCurve>, Vec<u32>) {
     // Feature edges incident to each vertex, as CSR.
     let n_v = topo.n_vertices();
     let mut offsets = vec![0u32; n_v + 1];
@@ -125,7 +136,7 @@ pub(crate) fn edge_chains(topo: &Topology, is_feature: &[bool]) -> (Vec<VertexId
     let mut is_corner: Vec<bool> = (0..n_v)
         .map(|v| {
             let d = degree(VertexId::new(v));
-            d != 0 && d != 2
+            d != 0 && (d != 2 || forced.get(v).copied().unwrap_or(false))
         })
         .collect();
 

@@ -365,7 +365,7 @@ mod tests {
 
     fn case(surface: TriMesh) -> Case {
         let topo = Topology::new(&surface);
-        let model = quad_model(&topo, &detect_features(&surface, &topo, 30.0));
+        let model = quad_model(&surface, &topo, &detect_features(&surface, &topo, 30.0));
         let mesh = quads_from_triangle_pairs(&surface, &topo, &model);
         Case { surface, topo, model, mesh }
     }
@@ -501,7 +501,7 @@ mod tests {
         let torus = fixtures::torus(2.0, 0.5, 32, 16);
         let cube = case(fixtures::cube(2));
         let topo = Topology::new(&torus);
-        let model = quad_model(&topo, &detect_features(&torus, &topo, 30.0));
+        let model = quad_model(&torus, &topo, &detect_features(&torus, &topo, 30.0));
         assert_eq!(model.n_faces, 1);
         let mut mesh = cube.mesh.clone();
         mesh.model_face_per_quad.iter_mut().for_each(|m| *m = 0);

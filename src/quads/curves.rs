@@ -7,7 +7,8 @@
 //! equal 3D arc length inside each piece of the curve; pieces end at the
 //! atlas corners on the curve (where a seam meets it: that vertex must exist
 //! on both patches' boundaries), at sharp turns of the polyline (a square
-//! bounded by one closed curve keeps its four corners) and at polyline
+//! bounded by one closed curve keeps its four corners) other than the tips
+//! of spikes ([`SPIKE_TURN_DEG`]), and at polyline
 //! vertices where a chord would cut a thin face across
 //! ([`CHORD_SAGITTA_FRACTION`]). Seams get `max(1, round(L / size))`
 //! segments, at equal arc length; their vertices lie inside a model face
@@ -28,6 +29,14 @@ use crate::mesh::{Topology, TriMesh, VertexId};
 /// Turning angle of a feature polyline above which its vertex is kept as a
 /// mesh vertex (degrees).
 pub const SHARP_TURN_DEG: f64 = 40.0;
+
+/// Turning angle above which a polyline vertex is the tip of a spike
+/// (interior angle below 30°) and is cut by the chord unless it is a
+/// corner ([`super::model`] makes it one where the cut would be visible):
+/// one quad corner cannot meet it, and a mesh vertex there folds the quads
+/// around it (bunny's hole boundary, a 24° spike a third of the quad size
+/// long).
+pub const SPIKE_TURN_DEG: f64 = 150.0;
 
 /// A polyline vertex farther than this fraction of a model face's width
 /// (area over perimeter, half the width of a strip) from the chord of its
@@ -214,7 +223,7 @@ fn atlas_min_segments(atlas: &Atlas) -> Vec<usize> {
 
 /// Indices of the chain vertices where a feature curve's pieces end: its
 /// ends, atlas corners (`corners`, sorted), the vertices in `kept`, sharp
-/// turns, and vertices
+/// turns other than spikes ([`SPIKE_TURN_DEG`]), and vertices
 /// farther from the chord of their two polyline neighbours than
 /// [`CHORD_SAGITTA_FRACTION`] of `width` (the smallest area-over-perimeter
 /// of the model faces the curve bounds): a chord over such a vertex would
@@ -233,7 +242,8 @@ fn piece_ends(
         let (p, q, r) = (surface.position(verts[i - 1]), surface.position(verts[i]), surface.position(verts[i + 1]));
         let turn = angle_between(&(q - p), &(r - q)).to_degrees();
         let sagitta = (q - p).cross(&(r - p)).norm() / (r - p).norm();
-        if corner || turn > SHARP_TURN_DEG || sagitta > CHORD_SAGITTA_FRACTION * width {
+        let spike = turn > SPIKE_TURN_DEG;
+        if corner || (turn > SHARP_TURN_DEG && !spike) || sagitta > CHORD_SAGITTA_FRACTION * width {
             ends.push(i);
         }
     }
@@ -461,6 +471,9 @@ pub fn discretize_boundaries(
         };
         let mut inside = std::mem::take(&mut b.inside[ac]);
         inside.sort_by(|x, y| x.0.total_cmp(&y.0));
+        // A model corner inside an atlas curve ends one model curve and
+        // starts the next: both record it, at the same place.
+        inside.dedup_by(|x, y| x.1 == y.1 && (x.0 - y.0).abs() < 1e-9);
         if inside.windows(2).any(|w| w[0].1 == w[1].1) {
             return Err(b.error(ac, format!("atlas curve {ac} holds a vertex twice")));
         }
@@ -499,6 +512,19 @@ mod tests {
     }
 
     #[test]
+    fn a_right_angle_ends_a_piece_and_a_spike_is_cut() {
+        // At (2, 0), on a face 10 wide: a turn by 90°, then by 171°
+        // (interior angle 9°).
+        let (mesh, verts) = polyline(&[Vec3::zeros(), Vec3::new(2.0, 0.0, 0.0), Vec3::new(2.0, 2.0, 0.0)]);
+        assert_eq!(piece_ends(&mesh, &[], &HashSet::new(), &verts, 10.0), vec![0, 1, 2]);
+        let (mesh, verts) = polyline(&[Vec3::zeros(), Vec3::new(2.0, 0.0, 0.0), Vec3::new(0.2, 0.3, 0.0)]);
+        assert_eq!(piece_ends(&mesh, &[], &HashSet::new(), &verts, 10.0), vec![0, 2]);
+        // As an atlas corner, or on a face narrower than its sagitta, it stays.
+        assert_eq!(piece_ends(&mesh, &[verts[1]], &HashSet::new(), &verts, 10.0), vec![0, 1, 2]);
+        assert_eq!(piece_ends(&mesh, &[], &HashSet::new(), &verts, 1.0), vec![0, 1, 2]);
+    }
+
+    #[test]
     fn a_round_face_keeps_no_vertex_of_its_boundary_below_the_sharp_turn() {
         // A 12-gon of radius 1 (turns of 30°) around a disk of width 1/2.
         let points: Vec<Vec3> = (0..=12)
@@ -515,7 +541,7 @@ mod tests {
     fn a_square_is_as_wide_as_a_quarter_of_its_side() {
         let mesh = fixtures::square(4);
         let topo = Topology::new(&mesh);
-        let model = quad_model(&topo, &crate::atlas::features::detect_features(&mesh, &topo, 30.0));
+        let model = quad_model(&mesh, &topo, &crate::atlas::features::detect_features(&mesh, &topo, 30.0));
         let widths = face_widths(&mesh, &model);
         assert_eq!(widths.len(), 1);
         assert!((widths[0] - 0.25).abs() < 1e-12, "{widths:?}");

@@ -115,7 +115,7 @@ pub fn build_quads(
         });
     }
     let topo = Topology::new(surface);
-    let model = quad_model(&topo, &atlas.features);
+    let model = quad_model(surface, &topo, &atlas.features);
     let diagonal = surface.bounding_box().map_or(0.0, |b| b.diagonal());
     let size = opts.target_size(surface.mean_edge_length(), diagonal);
     let estimated = (surface.area() / (size * size)).ceil();

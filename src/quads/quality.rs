@@ -235,7 +235,7 @@ mod tests {
 
     fn grid(surface: &TriMesh) -> (QuadMesh, QuadQuality) {
         let topo = Topology::new(surface);
-        let model = quad_model(&topo, &detect_features(surface, &topo, 30.0));
+        let model = quad_model(surface, &topo, &detect_features(surface, &topo, 30.0));
         let mesh = quads_from_triangle_pairs(surface, &topo, &model);
         let q = quad_quality(&mesh, surface);
         (mesh, q)

@@ -235,7 +235,7 @@ mod tests {
     #[allow(clippy::needless_update)]
     fn report_of(surface: &TriMesh, singularities: Vec<i32>, edit: impl FnOnce(&mut QuadMesh)) -> QuadsReport {
         let topo = Topology::new(surface);
-        let model = quad_model(&topo, &detect_features(surface, &topo, 30.0));
+        let model = quad_model(surface, &topo, &detect_features(surface, &topo, 30.0));
         let mut mesh = quads_from_triangle_pairs(surface, &topo, &model);
         edit(&mut mesh);
         let quality = quad_quality(&mesh, surface);

@@ -444,7 +444,8 @@ mod tests {
     fn the_curvature_cap_gives_a_prism_24_edges_on_its_rims_and_16_around() {
         let mesh = fixtures::cylinder(1.0, 2.0, 12, 4);
         let topo = Topology::new(&mesh);
-        let model = crate::quads::quad_model(&topo, &crate::atlas::features::detect_features(&mesh, &topo, 40.0));
+        let model =
+            crate::quads::quad_model(&mesh, &topo, &crate::atlas::features::detect_features(&mesh, &topo, 40.0));
         let size = 1.0;
         let map = curvature_bounded_sizes(SizeMap::uniform(mesh.n_vertices(), size), &mesh, &topo, &model, size);
         let w = 2.0 * 15f64.to_radians().sin();
@@ -455,7 +456,8 @@ mod tests {
         }
         let plane = fixtures::square(4);
         let topo = Topology::new(&plane);
-        let model = crate::quads::quad_model(&topo, &crate::atlas::features::detect_features(&plane, &topo, 40.0));
+        let model =
+            crate::quads::quad_model(&plane, &topo, &crate::atlas::features::detect_features(&plane, &topo, 40.0));
         let map = curvature_bounded_sizes(SizeMap::uniform(plane.n_vertices(), 0.3), &plane, &topo, &model, 0.3);
         assert!(map.size_per_vertex.iter().all(|&h| h == 0.3));
     }

@@ -385,7 +385,7 @@ pub(crate) mod tests {
     impl Input {
         pub(crate) fn new(surface: TriMesh) -> Self {
             let topo = Topology::new(&surface);
-            let model = quad_model(&topo, &detect_features(&surface, &topo, 30.0));
+            let model = quad_model(&surface, &topo, &detect_features(&surface, &topo, 30.0));
             Self { surface, topo, model }
         }
 

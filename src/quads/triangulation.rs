@@ -672,7 +672,7 @@ mod tests {
             &Progress::none(),
         )
         .expect("crossfield");
-        let model = quad_model(&topo, &atlas.features);
+        let model = quad_model(&mesh, &topo, &atlas.features);
         Setup { mesh, topo, atlas, field, model }
     }
 
