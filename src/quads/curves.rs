@@ -34,8 +34,8 @@ pub const SHARP_TURN_DEG: f64 = 40.0;
 /// (interior angle below 30°) and is cut by the chord unless it is a
 /// corner ([`super::model`] makes it one where the cut would be visible):
 /// one quad corner cannot meet it, and a mesh vertex there folds the quads
-/// around it (bunny's hole boundary, a 24° spike a third of the quad size
-/// long).
+/// around it (bunny's hole boundary, a 24° spike a quarter of the quad
+/// size long).
 pub const SPIKE_TURN_DEG: f64 = 150.0;
 
 /// A polyline vertex farther than this fraction of a model face's width

@@ -18,8 +18,9 @@
 //! slid along the curve by smoothing, and the chord would come back.
 //! Other turns only start a mesh vertex on the curve, free to slide
 //! ([`super::curves`]): pinning every turn of a jagged hole boundary
-//! (bunny's, by 40–156° at edges a third of the quad size) would fix the
-//! mesh to the input's zigzag, where cutting a spike costs no visible area.
+//! (bunny's turn by 40–156°, at edges down to a quarter of the quad size)
+//! would fix the mesh to the input's zigzag, where cutting a spike costs no
+//! visible area.
 
 use crate::atlas::features::{Features, edge_chains_with_corners, model_faces};
 use crate::geom::triangle_area;
@@ -88,8 +89,8 @@ pub fn quad_model(surface: &TriMesh, topo: &Topology, features: &Features) -> Qu
 
 /// The features of `features` without the edges whose two triangles lie in
 /// the same model face (`face_per_triangle`), curves and corners rebuilt
-/// with a corner at every pinned vertex ([`pinned_vertices`]). Dropping the edges leaves the model
-/// faces unchanged: they separate nothing.
+/// with a corner at every pinned vertex ([`pinned_vertices`]). Dropping the
+/// edges leaves the model faces unchanged: they separate nothing.
 fn separating_features(surface: &TriMesh, topo: &Topology, features: &Features, face_per_triangle: &[u32]) -> Features {
     let separates = |e: usize| match topo.edge_faces(EdgeId::new(e)) {
         [f, g] => face_per_triangle[f.idx()] != face_per_triangle[g.idx()],
