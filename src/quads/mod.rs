@@ -5,7 +5,7 @@
 //! Steps, each in its own module:
 //! 1. [`model`]: the feature model the mesh is classified on (corners,
 //!    feature curves, model faces bounded by them); atlas seams are not part
-//!    of it.
+//!    of it, and curve vertices a chord would visibly cut are corners.
 //! 2. [`curves`]: every feature curve discretized once at the target size,
 //!    shared by the faces it bounds, segment counts chosen so every model
 //!    face has an even number of boundary segments (parity).
