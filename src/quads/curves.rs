@@ -17,7 +17,7 @@
 use std::collections::{HashMap, HashSet};
 
 use super::error::QuadsError;
-use super::model::QuadModel;
+use super::model::{QuadModel, face_areas};
 use super::parity::{ParityCurve, ParityStats, fix_parity};
 use super::patch_chart::surface_position;
 use super::size_map::SizeMap;
@@ -255,10 +255,7 @@ fn piece_ends(
 /// curve with the face on both sides counted twice); infinite for a face
 /// without curves.
 fn face_widths(surface: &TriMesh, model: &QuadModel) -> Vec<f64> {
-    let mut area = vec![0.0; model.n_faces];
-    for (t, &f) in model.face_per_triangle.iter().enumerate() {
-        area[f as usize] += surface.face_area(crate::mesh::FaceId(t as u32));
-    }
+    let area = face_areas(surface, &model.face_per_triangle, model.n_faces);
     let mut perimeter = vec![0.0; model.n_faces];
     for (curve, faces) in model.features.curves.iter().zip(&model.faces_per_curve) {
         let length: f64 =

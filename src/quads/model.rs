@@ -62,7 +62,7 @@ impl QuadModel {
 /// documentation), split at the vertices a chord would cut off.
 pub fn quad_model(surface: &TriMesh, topo: &Topology, features: &Features) -> QuadModel {
     let faces = model_faces(topo, features);
-    let features = separating_features(surface, topo, features, &faces.component_per_face);
+    let features = separating_features(surface, topo, features, &faces.component_per_face, faces.n_components);
     let features = &features;
     let faces_per_curve = features
         .curves
@@ -91,14 +91,20 @@ pub fn quad_model(surface: &TriMesh, topo: &Topology, features: &Features) -> Qu
 /// the same model face (`face_per_triangle`), curves and corners rebuilt
 /// with a corner at every pinned vertex ([`pinned_vertices`]). Dropping the
 /// edges leaves the model faces unchanged: they separate nothing.
-fn separating_features(surface: &TriMesh, topo: &Topology, features: &Features, face_per_triangle: &[u32]) -> Features {
+fn separating_features(
+    surface: &TriMesh,
+    topo: &Topology,
+    features: &Features,
+    face_per_triangle: &[u32],
+    n_faces: usize,
+) -> Features {
     let separates = |e: usize| match topo.edge_faces(EdgeId::new(e)) {
         [f, g] => face_per_triangle[f.idx()] != face_per_triangle[g.idx()],
         _ => true,
     };
     let is_feature_edge: Vec<bool> =
         features.is_feature_edge.iter().enumerate().map(|(e, &flag)| flag && separates(e)).collect();
-    let pinned = pinned_vertices(surface, topo, &is_feature_edge, face_per_triangle);
+    let pinned = pinned_vertices(surface, topo, &is_feature_edge, face_per_triangle, n_faces);
     if is_feature_edge == features.is_feature_edge && pinned.iter().all(|&p| !p) {
         return features.clone();
     }
@@ -109,18 +115,15 @@ fn separating_features(surface: &TriMesh, topo: &Topology, features: &Features, 
 /// Per vertex: it has exactly two flagged edges, and the triangle it
 /// forms with its two neighbours on them is larger than
 /// [`PIN_AREA_FRACTION`] of the smallest adjacent model face (module
-/// documentation).
+/// documentation; `n_faces` model faces).
 fn pinned_vertices(
     surface: &TriMesh,
     topo: &Topology,
     is_feature_edge: &[bool],
     face_per_triangle: &[u32],
+    n_faces: usize,
 ) -> Vec<bool> {
-    let n_faces = face_per_triangle.iter().map(|&f| f as usize + 1).max().unwrap_or(0);
-    let mut face_area = vec![0.0; n_faces];
-    for (t, &f) in face_per_triangle.iter().enumerate() {
-        face_area[f as usize] += surface.face_area(FaceId::new(t));
-    }
+    let face_area = face_areas(surface, face_per_triangle, n_faces);
     let n = topo.n_vertices();
     let (mut count, mut other) = (vec![0u8; n], vec![[VertexId::new(0); 2]; n]);
     let mut smallest = vec![f64::INFINITY; n];
@@ -148,6 +151,16 @@ fn pinned_vertices(
             }
         })
         .collect()
+}
+
+/// Area of each of the `n_faces` model faces (`face_per_triangle` gives
+/// the face of each surface triangle).
+pub(super) fn face_areas(surface: &TriMesh, face_per_triangle: &[u32], n_faces: usize) -> Vec<f64> {
+    let mut area = vec![0.0; n_faces];
+    for (t, &f) in face_per_triangle.iter().enumerate() {
+        area[f as usize] += surface.face_area(FaceId::new(t));
+    }
+    area
 }
 
 #[cfg(test)]
