@@ -25,10 +25,46 @@ pub fn orient2d(a: &Vec2, b: &Vec2, c: &Vec2) -> f64 {
     (b.x - a.x) * (c.y - a.y) - (b.y - a.y) * (c.x - a.x)
 }
 
+/// True when the closed segments `ab` and `cd` share a point: they cross,
+/// or an end of one lies on the other (collinear segments only when they
+/// overlap; a planar chart puts a straight curve's segments on one line).
+pub fn segments_meet(a: &Vec2, b: &Vec2, c: &Vec2, d: &Vec2) -> bool {
+    let within = |p: &Vec2, q: &Vec2, r: &Vec2| {
+        r.x >= p.x.min(q.x) && r.x <= p.x.max(q.x) && r.y >= p.y.min(q.y) && r.y <= p.y.max(q.y)
+    };
+    let (d1, d2) = (orient2d(c, d, a), orient2d(c, d, b));
+    let (d3, d4) = (orient2d(a, b, c), orient2d(a, b, d));
+    let opposite = |x: f64, y: f64| (x > 0.0 && y < 0.0) || (x < 0.0 && y > 0.0);
+    (opposite(d1, d2) && opposite(d3, d4))
+        || (d1 == 0.0 && within(c, d, a))
+        || (d2 == 0.0 && within(c, d, b))
+        || (d3 == 0.0 && within(a, b, c))
+        || (d4 == 0.0 && within(a, b, d))
+}
+
 /// True when every coordinate of `points` is exactly an `f32` (always the
 /// case for binary STL input): such points can be keyed and stored in 32
 /// bits with nothing rounded.
 pub fn every_coordinate_is_f32(points: &[Vec3]) -> bool {
     use rayon::prelude::*;
     points.par_iter().all(|p| p.iter().all(|&c| f64::from(c as f32) == c))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn segments_meet_when_they_cross_touch_or_overlap() {
+        let p = |x: f64, y: f64| Vec2::new(x, y);
+        assert!(segments_meet(&p(0.0, 0.0), &p(1.0, 1.0), &p(0.0, 1.0), &p(1.0, 0.0)), "crossing");
+        assert!(segments_meet(&p(0.0, 0.0), &p(2.0, 0.0), &p(1.0, 0.0), &p(1.0, 1.0)), "an end on the other");
+        assert!(segments_meet(&p(0.0, 0.0), &p(2.0, 0.0), &p(1.0, 0.0), &p(3.0, 0.0)), "collinear overlap");
+        assert!(!segments_meet(&p(0.0, 0.0), &p(1.0, 0.0), &p(2.0, 0.0), &p(3.0, 0.0)), "collinear apart");
+        assert!(
+            !segments_meet(&p(0.0, 0.0), &p(1.0, 0.0), &p(3.0, 0.0), &p(3.0, 1.0)),
+            "an end on the line, off the segment"
+        );
+        assert!(!segments_meet(&p(0.0, 0.0), &p(1.0, 0.0), &p(0.0, 1.0), &p(1.0, 1.0)), "parallel");
+    }
 }

@@ -11,7 +11,9 @@
 //!    face has an even number of boundary segments (parity).
 //! 3. [`triangulation`]: in each atlas patch's `(u, v)` plane, points placed
 //!    frontally along the cross at the target size, a vertex at every
-//!    crossfield singularity, and a constrained Delaunay triangulation;
+//!    crossfield singularity, and a constrained Delaunay triangulation
+//!    ([`conformal_chart`]: a patch the atlas' disk map distorts is
+//!    triangulated in its plane or its conformal map instead);
 //!    the patches' triangulations joined into one [`SurfaceTriangulation`];
 //!    [`slivers`]: regions of slivers (fans a distorted chart leaves)
 //!    re-triangulated in 3D.
@@ -31,6 +33,7 @@
 pub mod cavity;
 pub mod check;
 pub mod cleanup;
+pub mod conformal_chart;
 pub mod curves;
 pub mod error;
 pub mod fixtures;

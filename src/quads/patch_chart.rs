@@ -96,14 +96,19 @@ impl<'a> PatchChart<'a> {
         self.patch.triangles[t as usize].map(|v| self.atlas.mesh.positions[self.patch.vertices[v as usize].idx()])
     }
 
-    /// Candidate triangles of the grid cell containing `uv` (empty outside).
+    /// Candidate triangles of the grid cell containing `uv` (empty outside;
+    /// a point off the chart's bounding box by rounding, as a boundary
+    /// point interpolated on an edge of the box can be, is in its border
+    /// cell).
     fn cell_items(&self, uv: &Vec2) -> &[u32] {
+        const SLACK: f64 = 1e-6;
         let fx = (uv.x - self.min.x) / self.cell;
         let fy = (uv.y - self.min.y) / self.cell;
-        if !(fx >= 0.0 && fy >= 0.0 && fx < self.nx as f64 && fy < self.ny as f64) {
+        let (nx, ny) = (self.nx as f64, self.ny as f64);
+        if !(fx >= -SLACK && fy >= -SLACK && fx < nx + SLACK && fy < ny + SLACK) {
             return &[];
         }
-        let k = fy as usize * self.nx + fx as usize;
+        let k = (fy.max(0.0) as usize).min(self.ny - 1) * self.nx + (fx.max(0.0) as usize).min(self.nx - 1);
         &self.items[self.offsets[k] as usize..self.offsets[k + 1] as usize]
     }
 
@@ -210,4 +215,26 @@ fn clamp_bary(b: [f64; 3]) -> [f64; 3] {
     let c = b.map(|x| x.max(0.0));
     let s = c[0] + c[1] + c[2];
     if s > 0.0 { c.map(|x| x / s) } else { [1.0 / 3.0; 3] }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::atlas::{AtlasOptions, build_atlas};
+    use crate::mesh::fixtures::square_structured;
+    use crate::progress::Progress;
+
+    #[test]
+    fn a_point_off_the_chart_box_by_rounding_is_located() {
+        let mesh = square_structured(4);
+        let atlas = build_atlas(&mesh, &AtlasOptions::default(), &Progress::none()).expect("atlas");
+        let patch = &atlas.patches[0];
+        let chart = PatchChart::new(&mesh, &atlas, patch);
+        let lowest = patch.uv.iter().copied().min_by(|a, b| a.y.total_cmp(&b.y)).expect("vertices");
+        // Interpolated on a boundary edge, a point can land an ulp below
+        // the lowest vertex.
+        let below = Vec2::new(lowest.x, lowest.y - 4.0 * f64::EPSILON);
+        assert!(chart.locate_near(&below).is_some());
+        assert!(chart.locate_near(&Vec2::new(lowest.x, lowest.y - 0.5)).is_none(), "far outside");
+    }
 }

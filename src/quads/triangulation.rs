@@ -22,6 +22,7 @@ use serde::Serialize;
 use spade::handles::FixedVertexHandle;
 use spade::{ConstrainedDelaunayTriangulation, Point2, Triangulation as _};
 
+use super::conformal_chart::better_chart;
 use super::curves::{BoundaryMesh, discretize_boundaries};
 use super::error::QuadsError;
 use super::flips::{FlipGeometry, flip_to_delaunay_in_3d, flip_toward_surface_shape, signed_shape};
@@ -34,7 +35,7 @@ use super::slivers::{SliverStats, retriangulate_slivers};
 use super::surface_mesh::{ModelEntity, SurfacePoint, SurfaceTriangulation};
 use crate::atlas::{Atlas, AtlasPatch};
 use crate::crossfield::Crossfield;
-use crate::geom::{Vec2, Vec3, orient2d};
+use crate::geom::{Vec2, Vec3, segments_meet};
 use crate::mesh::{Topology, TriMesh, VertexId};
 use crate::progress::Progress;
 
@@ -65,6 +66,9 @@ pub struct TriangulationStats {
     pub n_boundary_refinements: usize,
     /// Crossing segment pairs found over those rounds.
     pub n_boundary_crossings: usize,
+    /// Patches triangulated in their plane or their least-squares conformal
+    /// map instead of the atlas' disk map ([`super::conformal_chart`]).
+    pub n_charts_replaced: usize,
     /// Sliver regions re-triangulated in 3D after the merge.
     pub slivers: SliverStats,
 }
@@ -111,13 +115,14 @@ pub fn surface_triangulation(
         return Err(QuadsError::InvalidOption { name: "size", reason: format!("must be positive, got {size}") });
     }
     let sizes = curvature_bounded_sizes(conformal_size_map(surface, topo, field, size)?, surface, topo, model, size);
+    let better: Vec<Option<AtlasPatch>> = atlas.patches.par_iter().map(|p| better_chart(atlas, p)).collect();
+    let charts: Vec<&AtlasPatch> = atlas.patches.iter().zip(&better).map(|(p, q)| q.as_ref().unwrap_or(p)).collect();
     let mut kept = HashSet::new();
     let mut boundary = discretize_boundaries(surface, topo, atlas, model, size, &sizes, &kept)?;
     let mut refinements = (0, 0);
     for round in 0..MAX_BOUNDARY_REFINEMENTS {
         progress.check()?;
-        let crossings: Vec<Vec<[u32; 4]>> = atlas
-            .patches
+        let crossings: Vec<Vec<[u32; 4]>> = charts
             .par_iter()
             .enumerate()
             .map(|(i, patch)| Ok(boundary_crossings(&patch_boundary(atlas, &boundary, patch, i)?)))
@@ -133,8 +138,7 @@ pub fn surface_triangulation(
     }
     progress.check()?;
     progress.set(0.1);
-    let outs: Vec<Result<PatchOut, QuadsError>> = atlas
-        .patches
+    let outs: Vec<Result<PatchOut, QuadsError>> = charts
         .par_iter()
         .enumerate()
         .map(|(i, patch)| {
@@ -149,6 +153,8 @@ pub fn surface_triangulation(
     }
     let (mut tri, mut stats) = merge(surface, boundary, outs_ok);
     stats.slivers = retriangulate_slivers(&mut tri);
+    stats.n_charts_replaced = better.iter().filter(|c| c.is_some()).count();
+    stats.n_charts_replaced = better.iter().filter(|c| c.is_some()).count();
     stats.n_vertices = tri.vertices.len();
     stats.n_triangles = tri.triangles.len();
     (stats.n_boundary_refinements, stats.n_boundary_crossings) = refinements;
@@ -244,9 +250,7 @@ fn boundary_crossings(pb: &PatchBoundary) -> Vec<[u32; 4]> {
             if [c, d].contains(&a) || [c, d].contains(&b) {
                 continue;
             }
-            let o1 = orient2d(&uv[a], &uv[b], &uv[c]) * orient2d(&uv[a], &uv[b], &uv[d]);
-            let o2 = orient2d(&uv[c], &uv[d], &uv[a]) * orient2d(&uv[c], &uv[d], &uv[b]);
-            if o1 <= 0.0 && o2 <= 0.0 {
+            if segments_meet(&uv[a], &uv[b], &uv[c], &uv[d]) {
                 out.push([a, b, c, d].map(|k| pb.ids[k]));
             }
         }
