@@ -9,7 +9,8 @@ pub mod triangle;
 
 pub use bbox::BoundingBox;
 pub use triangle::{
-    angle_between, corner_angles, triangle_area, triangle_area_vector, triangle_normal, triangle_quality,
+    angle_between, barycentric_gradients, corner_angles, triangle_area, triangle_area_vector, triangle_normal,
+    triangle_quality,
 };
 
 /// A 3-vector (or point) of `f64`.
@@ -40,6 +41,34 @@ pub fn segments_meet(a: &Vec2, b: &Vec2, c: &Vec2, d: &Vec2) -> bool {
         || (d2 == 0.0 && within(c, d, b))
         || (d3 == 0.0 && within(a, b, c))
         || (d4 == 0.0 && within(a, b, d))
+}
+
+/// The pairs `[i, j]` of `segments` (index pairs into `points`) that meet
+/// ([`segments_meet`]) and share no end, `i` the later in the sweep:
+/// segments are swept in order of their smallest `x`, each tested against
+/// the earlier ones whose `x` range reaches it.
+pub fn meeting_segments(points: &[Vec2], segments: &[[usize; 2]]) -> Vec<[usize; 2]> {
+    let span = |s: &[usize; 2]| (points[s[0]].x.min(points[s[1]].x), points[s[0]].x.max(points[s[1]].x));
+    let mut order: Vec<usize> = (0..segments.len()).collect();
+    order.sort_by(|&i, &j| span(&segments[i]).0.total_cmp(&span(&segments[j]).0).then(i.cmp(&j)));
+    let mut active: Vec<usize> = Vec::new();
+    let mut out = Vec::new();
+    for &i in &order {
+        let [a, b] = segments[i];
+        let lo = span(&segments[i]).0;
+        active.retain(|&j| span(&segments[j]).1 >= lo);
+        for &j in &active {
+            let [c, d] = segments[j];
+            if [c, d].contains(&a) || [c, d].contains(&b) {
+                continue;
+            }
+            if segments_meet(&points[a], &points[b], &points[c], &points[d]) {
+                out.push([i, j]);
+            }
+        }
+        active.push(i);
+    }
+    out
 }
 
 /// True when every coordinate of `points` is exactly an `f32` (always the

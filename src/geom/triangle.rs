@@ -22,6 +22,12 @@ pub fn triangle_normal(a: &Vec3, b: &Vec3, c: &Vec3) -> Option<Vec3> {
     (len > 0.0 && len.is_finite()).then(|| n / len)
 }
 
+/// Gradients `∇λᵢ` of the barycentric coordinates of triangle `p` with unit
+/// normal `n` and area `area` (each perpendicular to the opposite edge).
+pub fn barycentric_gradients(p: &[Vec3; 3], n: &Vec3, area: f64) -> [Vec3; 3] {
+    std::array::from_fn(|i| n.cross(&(p[(i + 2) % 3] - p[(i + 1) % 3])) / (2.0 * area))
+}
+
 /// Unsigned angle in `[0, π]` between two vectors, computed with `atan2`
 /// so that it stays accurate for nearly parallel vectors (slivers).
 #[inline]

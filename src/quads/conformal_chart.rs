@@ -26,7 +26,7 @@
 
 use crate::atlas::verify::sigma_ratio;
 use crate::atlas::{Atlas, AtlasPatch};
-use crate::geom::{Vec2, Vec3, orient2d, segments_meet};
+use crate::geom::{Vec2, Vec3, barycentric_gradients, meeting_segments, orient2d};
 use crate::linalg::{CholeskySolver, Triplets};
 
 /// Largest distance of a patch vertex from the patch's plane, as a
@@ -152,8 +152,7 @@ fn triangle_gradients(p: &[Vec3; 3]) -> Option<([Vec3; 3], [Vec3; 3], f64)> {
         return None;
     }
     let n = normal / twice_area;
-    // ∇φₘ = n̂ × (p_{m+2} − p_{m+1}) / 2A: perpendicular to the opposite edge.
-    let grad: [Vec3; 3] = std::array::from_fn(|m| n.cross(&(p[(m + 2) % 3] - p[(m + 1) % 3])) / twice_area);
+    let grad = barycentric_gradients(p, &n, 0.5 * twice_area);
     let rotated = grad.map(|g| n.cross(&g));
     Some((grad, rotated, 0.5 * twice_area))
 }
@@ -253,7 +252,8 @@ fn finish_chart(atlas: &Atlas, patch: &AtlasPatch, mut uv: Vec<Vec2>) -> Option<
         return None;
     }
     uv.iter_mut().for_each(|p| *p = (*p - centre) / radius);
-    if !patch.triangles.iter().all(|t| signed(&uv, t) > 0.0) || boundary_self_meets(&uv, &boundary_edges(patch)) {
+    let boundary: Vec<[usize; 2]> = boundary_edges(patch).iter().map(|e| e.map(|v| v as usize)).collect();
+    if !patch.triangles.iter().all(|t| signed(&uv, t) > 0.0) || !meeting_segments(&uv, &boundary).is_empty() {
         return None;
     }
     let sigma_ratio = patch
@@ -262,34 +262,6 @@ fn finish_chart(atlas: &Atlas, patch: &AtlasPatch, mut uv: Vec<Vec2>) -> Option<
         .map(|t| sigma_ratio(t.map(|l| position(atlas, patch, l)), t.map(|l| uv[l as usize])))
         .collect();
     Some(AtlasPatch { uv, sigma_ratio, ..patch.clone() })
-}
-
-/// True when two boundary edges that share no vertex meet in `uv` (swept in
-/// order of their smallest `u`).
-fn boundary_self_meets(uv: &[Vec2], edges: &[[u32; 2]]) -> bool {
-    let span = |e: &[u32; 2]| {
-        let (a, b) = (uv[e[0] as usize].x, uv[e[1] as usize].x);
-        (a.min(b), a.max(b))
-    };
-    let mut order: Vec<usize> = (0..edges.len()).collect();
-    order.sort_by(|&i, &j| span(&edges[i]).0.total_cmp(&span(&edges[j]).0).then(i.cmp(&j)));
-    let mut active: Vec<usize> = Vec::new();
-    for &i in &order {
-        let [a, b] = edges[i];
-        let lo = span(&edges[i]).0;
-        active.retain(|&j| span(&edges[j]).1 >= lo);
-        for &j in &active {
-            let [c, d] = edges[j];
-            if [c, d].contains(&a) || [c, d].contains(&b) {
-                continue;
-            }
-            if segments_meet(&uv[a as usize], &uv[b as usize], &uv[c as usize], &uv[d as usize]) {
-                return true;
-            }
-        }
-        active.push(i);
-    }
-    false
 }
 
 #[cfg(test)]

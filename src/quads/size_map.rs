@@ -59,7 +59,7 @@ use crate::mesh::{EdgeId, FaceId, Topology, TriMesh, VertexId};
 use super::curves::SHARP_TURN_DEG;
 use super::model::QuadModel;
 use crate::atlas::features::dihedral_angle;
-use crate::geom::angle_between;
+use crate::geom::{angle_between, barycentric_gradients};
 
 /// Fraction of `log h` values clamped at each end, per component.
 const QUANTILE: f64 = 0.05;
@@ -121,12 +121,6 @@ impl SizeMap {
     pub fn range(&self) -> (f64, f64) {
         self.size_per_vertex.iter().fold((f64::INFINITY, 0.0f64), |(lo, hi), &h| (lo.min(h), hi.max(h)))
     }
-}
-
-/// Gradients `∇λᵢ` of the barycentric coordinates of triangle `p` with unit
-/// normal `n` and area `area`.
-fn barycentric_gradients(p: &[Vec3; 3], n: &Vec3, area: f64) -> [Vec3; 3] {
-    std::array::from_fn(|i| n.cross(&(p[(i + 2) % 3] - p[(i + 1) % 3])) / (2.0 * area))
 }
 
 /// `G = ∇θ` of the cross in face `f` from the CR values in the triangle

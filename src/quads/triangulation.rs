@@ -35,7 +35,7 @@ use super::slivers::{SliverStats, retriangulate_slivers};
 use super::surface_mesh::{ModelEntity, SurfacePoint, SurfaceTriangulation};
 use crate::atlas::{Atlas, AtlasPatch};
 use crate::crossfield::Crossfield;
-use crate::geom::{Vec2, Vec3, segments_meet};
+use crate::geom::{Vec2, Vec3, meeting_segments};
 use crate::mesh::{Topology, TriMesh, VertexId};
 use crate::progress::Progress;
 
@@ -235,28 +235,13 @@ fn patch_boundary(
 /// around; the constrained triangulation cannot take such a polygon.
 /// Segments are swept in order of their smallest `u`.
 fn boundary_crossings(pb: &PatchBoundary) -> Vec<[u32; 4]> {
-    let uv = &pb.uv;
-    let span = |s: &[usize; 2]| (uv[s[0]].x.min(uv[s[1]].x), uv[s[0]].x.max(uv[s[1]].x));
-    let mut order: Vec<usize> = (0..pb.segments.len()).collect();
-    order.sort_by(|&i, &j| span(&pb.segments[i]).0.total_cmp(&span(&pb.segments[j]).0).then(i.cmp(&j)));
-    let mut active: Vec<usize> = Vec::new();
-    let mut out = Vec::new();
-    for &i in &order {
-        let [a, b] = pb.segments[i];
-        let lo = span(&pb.segments[i]).0;
-        active.retain(|&j| span(&pb.segments[j]).1 >= lo);
-        for &j in &active {
-            let [c, d] = pb.segments[j];
-            if [c, d].contains(&a) || [c, d].contains(&b) {
-                continue;
-            }
-            if segments_meet(&uv[a], &uv[b], &uv[c], &uv[d]) {
-                out.push([a, b, c, d].map(|k| pb.ids[k]));
-            }
-        }
-        active.push(i);
-    }
-    out
+    meeting_segments(&pb.uv, &pb.segments)
+        .into_iter()
+        .map(|[i, j]| {
+            let ([a, b], [c, d]) = (pb.segments[i], pb.segments[j]);
+            [a, b, c, d].map(|k| pb.ids[k])
+        })
+        .collect()
 }
 
 /// Rounds of [`keep_near_crossings`] before a crossing boundary is an
