@@ -41,8 +41,16 @@
 //! 2 %. The cap is never below [`MIN_SIZE_FRACTION_SURFACE`] (bends) or
 //! [`MIN_SIZE_FRACTION_CURVE`] (curves) of the size asked (a noisy scan
 //! bends everywhere; a flat face bounded by a coarse circle needs the finer
-//! curve), and
-//! it is graded (`h(x) ≤ h(y) + g |x − y|`, `g` = [`SIZE_GRADIENT`]) so the
+//! curve), except on a small model face: its floor is lowered to what
+//! [`QUADS_PER_SMALL_FACE`] quads of its area allow,
+//! `√(area / QUADS_PER_SMALL_FACE) / size`, down to
+//! [`MIN_SIZE_FRACTION_SMALL_FACE`] (the curves bounding it share its floor).
+//! A thin pin or a small hole of a CAD part, narrower than the size asked,
+//! is real geometry a quad must not wrap around (at a quarter of the size a
+//! pin of radius `size / 16` gets under two quads per turn, whose corners'
+//! normals are opposite), and the extra quads it costs are bounded by its
+//! area; a scan's noise on a large face stays at the floor. The cap is
+//! graded (`h(x) ≤ h(y) + g |x − y|`, `g` = [`SIZE_GRADIENT`]) so the
 //! size changes no faster than a front can follow.
 
 use nalgebra::Complex;
@@ -57,7 +65,7 @@ use crate::mesh::components::connected_components;
 use crate::mesh::{EdgeId, FaceId, Topology, TriMesh, VertexId};
 
 use super::curves::SHARP_TURN_DEG;
-use super::model::QuadModel;
+use super::model::{QuadModel, face_areas};
 use crate::atlas::features::dihedral_angle;
 use crate::geom::{angle_between, barycentric_gradients};
 
@@ -77,6 +85,14 @@ pub const MIN_SIZE_FRACTION_SURFACE: f64 = 0.25;
 
 /// The curve cap never goes below this fraction of the size asked.
 pub const MIN_SIZE_FRACTION_CURVE: f64 = 0.125;
+
+/// The floor of a small model face's caps never goes below this fraction
+/// of the size asked (module documentation).
+pub const MIN_SIZE_FRACTION_SMALL_FACE: f64 = 0.06;
+
+/// Quads a model face may get from following its curvature below the
+/// floors of the size asked (module documentation).
+pub const QUADS_PER_SMALL_FACE: f64 = 4096.0;
 
 /// Largest growth of the capped size per unit length.
 pub const SIZE_GRADIENT: f64 = 0.5;
@@ -257,7 +273,13 @@ fn turns_per_length(surface: &TriMesh, topo: &Topology, model: &QuadModel, size:
     let mut turns = vec![0.0f64; surface.n_vertices()];
     let per_radian_surface = SEGMENTS_PER_TURN_SURFACE / std::f64::consts::TAU;
     let per_radian_curve = SEGMENTS_PER_TURN_CURVE / std::f64::consts::TAU;
-    let (most_surface, most_curve) = (1.0 / (MIN_SIZE_FRACTION_SURFACE * size), 1.0 / (MIN_SIZE_FRACTION_CURVE * size));
+    let face_floor = face_floor_fractions(surface, model, size);
+    let most_surface = |face: u32| 1.0 / (face_floor[face as usize] * size);
+    let curve_floor: Vec<f64> = model
+        .faces_per_curve
+        .iter()
+        .map(|faces| faces.iter().map(|&m| face_floor[m as usize]).fold(MIN_SIZE_FRACTION_CURVE, f64::min))
+        .collect();
     for e in 0..topo.n_edges() {
         let edge = EdgeId::new(e);
         let &[f, g] = topo.edge_faces(edge) else { continue };
@@ -273,13 +295,15 @@ fn turns_per_length(surface: &TriMesh, topo: &Topology, model: &QuadModel, size:
         // bend is spread over.
         let width = (surface.face_area(f) + surface.face_area(g)) / length;
         if width > 0.0 {
-            let t = (per_radian_surface * dihedral_angle(surface, f, g) / width).min(most_surface);
+            let t = (per_radian_surface * dihedral_angle(surface, f, g) / width)
+                .min(most_surface(model.face_per_triangle[f.idx()]));
             for v in [a, b] {
                 turns[v.idx()] = turns[v.idx()].max(t);
             }
         }
     }
-    for curve in &model.features.curves {
+    for (curve, &floor) in model.features.curves.iter().zip(&curve_floor) {
+        let most_curve = 1.0 / (floor * size);
         let verts = &curve.vertices;
         let mut turn_at = |prev: VertexId, v: VertexId, next: VertexId| {
             let (p, q, r) = (surface.position(prev), surface.position(v), surface.position(next));
@@ -297,6 +321,20 @@ fn turns_per_length(surface: &TriMesh, topo: &Topology, model: &QuadModel, size:
         }
     }
     turns
+}
+
+/// Per model face, the fraction of the size `size` its caps may not go
+/// below: [`MIN_SIZE_FRACTION_SURFACE`], lowered on a small face to
+/// `√(area / QUADS_PER_SMALL_FACE) / size`, at least
+/// [`MIN_SIZE_FRACTION_SMALL_FACE`] (module documentation).
+fn face_floor_fractions(surface: &TriMesh, model: &QuadModel, size: f64) -> Vec<f64> {
+    face_areas(surface, &model.face_per_triangle, model.n_faces)
+        .into_iter()
+        .map(|area| {
+            let affordable = (area / QUADS_PER_SMALL_FACE).sqrt() / size;
+            affordable.clamp(MIN_SIZE_FRACTION_SMALL_FACE, MIN_SIZE_FRACTION_SURFACE)
+        })
+        .collect()
 }
 
 /// Lowers `h` to `min over y of h(y) + g |x − y|` along the surface edges
@@ -455,6 +493,46 @@ mod tests {
         let map = curvature_bounded_sizes(SizeMap::uniform(plane.n_vertices(), 0.3), &plane, &topo, &model, 0.3);
         assert!(map.size_per_vertex.iter().all(|&h| h == 0.3));
     }
+    /// A pin (open 36-sided prism of radius `size / 16`, 10° folds, its
+    /// two rims its curves) on a model face of area `a`: a small face may
+    /// follow its bends below the size asked's floors, down to
+    /// `√(a / QUADS_PER_SMALL_FACE)`, at least
+    /// [`MIN_SIZE_FRACTION_SMALL_FACE`] of the size; a large one keeps the
+    /// floors (¼ of the size on the surface, ⅛ on the rims). Its own caps
+    /// (circumference / 16 and / 24) are below every floor, so each vertex
+    /// gets exactly its floor.
+    #[test]
+    fn a_small_face_follows_its_bends_below_the_floor_of_the_size_asked() {
+        let size = 1.0;
+        let radius = size / 16.0;
+        let circumference = 36.0 * 2.0 * radius * 5f64.to_radians().sin();
+        let sizes_on_pin = |height: f64| {
+            let mesh = fixtures::cylinder(radius, height, 36, 8);
+            let topo = Topology::new(&mesh);
+            let model =
+                crate::quads::quad_model(&mesh, &topo, &crate::atlas::features::detect_features(&mesh, &topo, 40.0));
+            assert_eq!(model.n_faces, 1);
+            let map = curvature_bounded_sizes(SizeMap::uniform(mesh.n_vertices(), size), &mesh, &topo, &model, size);
+            assert!(circumference / 16.0 < MIN_SIZE_FRACTION_SMALL_FACE * size);
+            let on_rim: Vec<bool> = mesh.positions.iter().map(|p| p.z == 0.0 || p.z == height).collect();
+            (map.size_per_vertex, on_rim, mesh.area())
+        };
+        // A 0.5-long pin (area 0.2 size²): the lowest floor everywhere.
+        let (h, _, _) = sizes_on_pin(0.5);
+        assert!(h.iter().all(|&h| (h - MIN_SIZE_FRACTION_SMALL_FACE * size).abs() < 1e-12), "{h:?}");
+        // 104 long (area 41 size²): the floor its area affords, about 0.1.
+        let (h, _, area) = sizes_on_pin(104.0);
+        let affordable = (area / QUADS_PER_SMALL_FACE).sqrt();
+        assert!(affordable > MIN_SIZE_FRACTION_SMALL_FACE && affordable < MIN_SIZE_FRACTION_CURVE);
+        assert!(h.iter().all(|&h| (h - affordable * size).abs() < 1e-12), "{affordable}: {h:?}");
+        // 800 long (area 314 size²): the floors of the size asked.
+        let (h, on_rim, _) = sizes_on_pin(800.0);
+        for (h, rim) in h.iter().zip(on_rim) {
+            let floor = if rim { MIN_SIZE_FRACTION_CURVE } else { MIN_SIZE_FRACTION_SURFACE };
+            assert!((h - floor * size).abs() < 1e-12, "rim {rim}: h = {h}");
+        }
+    }
+
     use crate::crossfield::frames::{edge_direction, edge_normal};
     use crate::mesh::{EdgeId, fixtures};
 

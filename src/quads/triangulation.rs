@@ -154,7 +154,6 @@ pub fn surface_triangulation(
     let (mut tri, mut stats) = merge(surface, boundary, outs_ok);
     stats.slivers = retriangulate_slivers(&mut tri);
     stats.n_charts_replaced = better.iter().filter(|c| c.is_some()).count();
-    stats.n_charts_replaced = better.iter().filter(|c| c.is_some()).count();
     stats.n_vertices = tri.vertices.len();
     stats.n_triangles = tri.triangles.len();
     (stats.n_boundary_refinements, stats.n_boundary_crossings) = refinements;
