@@ -52,7 +52,7 @@ const INPUTS: &[(&str, &str, Plan)] = &[
     (
         "corpus",
         "cow.obj",
-        Plan::Fails("6 inverted quads of 32528 (next to a 95° input edge below the feature threshold)"),
+        Plan::Fails("6 inverted quads of 32528 (round the edge of a part 0.01 thick, under half the quad size)"),
     ),
     ("corpus", "camelhead.obj", Plan::Run),
     ("corpus", "fault_santa_monica_bay.obj", Plan::Run),
