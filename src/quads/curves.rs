@@ -17,7 +17,7 @@
 use std::collections::{HashMap, HashSet};
 
 use super::error::QuadsError;
-use super::model::{QuadModel, face_areas};
+use super::model::QuadModel;
 use super::parity::{ParityCurve, ParityStats, fix_parity};
 use super::patch_chart::surface_position;
 use super::size_map::SizeMap;
@@ -255,7 +255,7 @@ fn piece_ends(
 /// curve with the face on both sides counted twice); infinite for a face
 /// without curves.
 fn face_widths(surface: &TriMesh, model: &QuadModel) -> Vec<f64> {
-    let area = face_areas(surface, &model.face_per_triangle, model.n_faces);
+    let area = &model.face_area;
     let mut perimeter = vec![0.0; model.n_faces];
     for (curve, faces) in model.features.curves.iter().zip(&model.faces_per_curve) {
         let length: f64 =

@@ -45,6 +45,8 @@ pub struct QuadModel {
     pub face_per_triangle: Vec<u32>,
     /// Number of model faces.
     pub n_faces: usize,
+    /// Area of each model face.
+    pub face_area: Vec<f64>,
     /// For each curve, the model faces on either side (one for a boundary
     /// curve, more for a non-manifold one), sorted and deduplicated.
     pub faces_per_curve: Vec<Vec<u32>>,
@@ -62,7 +64,8 @@ impl QuadModel {
 /// documentation), split at the vertices a chord would cut off.
 pub fn quad_model(surface: &TriMesh, topo: &Topology, features: &Features) -> QuadModel {
     let faces = model_faces(topo, features);
-    let features = separating_features(surface, topo, features, &faces.component_per_face, faces.n_components);
+    let face_area = face_areas(surface, &faces.component_per_face, faces.n_components);
+    let features = separating_features(surface, topo, features, &faces.component_per_face, &face_area);
     let features = &features;
     let faces_per_curve = features
         .curves
@@ -83,12 +86,13 @@ pub fn quad_model(surface: &TriMesh, topo: &Topology, features: &Features) -> Qu
         features: features.clone(),
         face_per_triangle: faces.component_per_face,
         n_faces: faces.n_components,
+        face_area,
         faces_per_curve,
     }
 }
 
 /// The features of `features` without the edges whose two triangles lie in
-/// the same model face (`face_per_triangle`), curves and corners rebuilt
+/// the same model face (`face_per_triangle`, areas `face_area`), curves and corners rebuilt
 /// with a corner at every pinned vertex ([`pinned_vertices`]). Dropping the
 /// edges leaves the model faces unchanged: they separate nothing.
 fn separating_features(
@@ -96,7 +100,7 @@ fn separating_features(
     topo: &Topology,
     features: &Features,
     face_per_triangle: &[u32],
-    n_faces: usize,
+    face_area: &[f64],
 ) -> Features {
     let separates = |e: usize| match topo.edge_faces(EdgeId::new(e)) {
         [f, g] => face_per_triangle[f.idx()] != face_per_triangle[g.idx()],
@@ -104,7 +108,7 @@ fn separating_features(
     };
     let is_feature_edge: Vec<bool> =
         features.is_feature_edge.iter().enumerate().map(|(e, &flag)| flag && separates(e)).collect();
-    let pinned = pinned_vertices(surface, topo, &is_feature_edge, face_per_triangle, n_faces);
+    let pinned = pinned_vertices(surface, topo, &is_feature_edge, face_per_triangle, face_area);
     if is_feature_edge == features.is_feature_edge && pinned.iter().all(|&p| !p) {
         return features.clone();
     }
@@ -115,15 +119,14 @@ fn separating_features(
 /// Per vertex: it has exactly two flagged edges, and the triangle it
 /// forms with its two neighbours on them is larger than
 /// [`PIN_AREA_FRACTION`] of the smallest adjacent model face (module
-/// documentation; `n_faces` model faces).
+/// documentation; `face_area` the model faces' areas).
 fn pinned_vertices(
     surface: &TriMesh,
     topo: &Topology,
     is_feature_edge: &[bool],
     face_per_triangle: &[u32],
-    n_faces: usize,
+    face_area: &[f64],
 ) -> Vec<bool> {
-    let face_area = face_areas(surface, face_per_triangle, n_faces);
     let n = topo.n_vertices();
     let (mut count, mut other) = (vec![0u8; n], vec![[VertexId::new(0); 2]; n]);
     let mut smallest = vec![f64::INFINITY; n];
@@ -155,7 +158,7 @@ fn pinned_vertices(
 
 /// Area of each of the `n_faces` model faces (`face_per_triangle` gives
 /// the face of each surface triangle).
-pub(super) fn face_areas(surface: &TriMesh, face_per_triangle: &[u32], n_faces: usize) -> Vec<f64> {
+fn face_areas(surface: &TriMesh, face_per_triangle: &[u32], n_faces: usize) -> Vec<f64> {
     let mut area = vec![0.0; n_faces];
     for (t, &f) in face_per_triangle.iter().enumerate() {
         area[f as usize] += surface.face_area(FaceId::new(t));

@@ -65,7 +65,7 @@ use crate::mesh::components::connected_components;
 use crate::mesh::{EdgeId, FaceId, Topology, TriMesh, VertexId};
 
 use super::curves::SHARP_TURN_DEG;
-use super::model::{QuadModel, face_areas};
+use super::model::QuadModel;
 use crate::atlas::features::dihedral_angle;
 use crate::geom::{angle_between, barycentric_gradients};
 
@@ -273,7 +273,7 @@ fn turns_per_length(surface: &TriMesh, topo: &Topology, model: &QuadModel, size:
     let mut turns = vec![0.0f64; surface.n_vertices()];
     let per_radian_surface = SEGMENTS_PER_TURN_SURFACE / std::f64::consts::TAU;
     let per_radian_curve = SEGMENTS_PER_TURN_CURVE / std::f64::consts::TAU;
-    let face_floor = face_floor_fractions(surface, model, size);
+    let face_floor = face_floor_fractions(model, size);
     let most_surface = |face: u32| 1.0 / (face_floor[face as usize] * size);
     let curve_floor: Vec<f64> = model
         .faces_per_curve
@@ -327,10 +327,11 @@ fn turns_per_length(surface: &TriMesh, topo: &Topology, model: &QuadModel, size:
 /// below: [`MIN_SIZE_FRACTION_SURFACE`], lowered on a small face to
 /// `√(area / QUADS_PER_SMALL_FACE) / size`, at least
 /// [`MIN_SIZE_FRACTION_SMALL_FACE`] (module documentation).
-fn face_floor_fractions(surface: &TriMesh, model: &QuadModel, size: f64) -> Vec<f64> {
-    face_areas(surface, &model.face_per_triangle, model.n_faces)
-        .into_iter()
-        .map(|area| {
+fn face_floor_fractions(model: &QuadModel, size: f64) -> Vec<f64> {
+    model
+        .face_area
+        .iter()
+        .map(|&area| {
             let affordable = (area / QUADS_PER_SMALL_FACE).sqrt() / size;
             affordable.clamp(MIN_SIZE_FRACTION_SMALL_FACE, MIN_SIZE_FRACTION_SURFACE)
         })
