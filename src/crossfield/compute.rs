@@ -42,7 +42,7 @@
 use super::energy::EnergyParams;
 use super::frames::{C64, Discretization, check_orientation, face_frame};
 use super::initial::{InitialKind, initial_field, principal_curvature_field};
-use super::newton::{NewtonSolver, StageSpec};
+use super::newton::{FINAL_SETTLED_RESIDUAL, NewtonSolver, StageSpec};
 use super::singularities::vertex_indices;
 use super::system::NewtonSystem;
 use super::transfer::transfer_to_fine;
@@ -632,6 +632,7 @@ fn stage_spec(e: f64, last: bool, shrunk: bool, opts: &CrossfieldOptions) -> Sta
         max_iter: if last { opts.max_newton_iterations } else { (opts.max_newton_iterations / 3).max(10) },
         stop_on_stall: !last,
         mu_start: if shrunk { 1.0 } else { 0.0 },
+        settled_residual: if last { FINAL_SETTLED_RESIDUAL } else { 0.0 },
     }
 }
 

@@ -77,7 +77,10 @@ pub struct CrossfieldOptions {
     /// (`docs/decisions.md`).
     pub continuation_factor: f64,
     /// Final tolerance on the scaled residual `ε² ‖Δf − (|f|²−1) f/ε²‖_{L²}/√area`
-    /// (dimensionless). Default 1e-8.
+    /// (dimensionless). Default 1e-8. The final stage also ends, as
+    /// converged, on the plateau rules of [`newton`] or at a residual of
+    /// [`newton::FINAL_SETTLED_RESIDUAL`] away from a saddle
+    /// (`stopped_on_plateau` in the report).
     pub tolerance: f64,
     /// Tolerance for the intermediate ε of the continuation. Default 1e-3:
     /// an intermediate stage only has to put the cores roughly in place for

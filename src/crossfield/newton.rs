@@ -107,6 +107,13 @@ const NESTED_DISSECTION_MIN_DOFS: usize = 200_000;
 /// stop as settled. The steps after that move the vortex zeros within their
 /// stars, by a fraction of a cell (`docs/decisions.md`).
 const SETTLE_STEPS: usize = 2;
+/// The continuation's final stage: once the scaled residual is at or below
+/// this, a step that raises it ends the stage at the iterate before that
+/// step (see [`StageSpec::settled_residual`]). Such steps carry the vortex
+/// pattern along the flat valley of the renormalized energy, a cell per
+/// step, and the plateau rule ends them on a larger residual after many
+/// factorizations (`docs/decisions.md`).
+pub const FINAL_SETTLED_RESIDUAL: f64 = 3e-5;
 /// Maximum step halvings.
 const MAX_HALVINGS: usize = 40;
 /// First non-zero Levenberg–Marquardt parameter (units of 1/ε²). 10⁻⁴
@@ -161,6 +168,11 @@ pub struct StageSpec {
     /// 1 right after ε decreased, where the shrinking cores make the
     /// Hessian indefinite, else 0.
     pub mu_start: f64,
+    /// Final stage: once an iterate has a scaled residual at or below this
+    /// (and the last factorization attempt found no negative curvature: not
+    /// a saddle), a step that raises the residual is undone and the stage
+    /// ends there, as converged; 0 to iterate to `tol` or a plateau.
+    pub settled_residual: f64,
 }
 
 /// Outcome of one stage.
@@ -291,6 +303,18 @@ impl StageState {
         let at_saddle = spec.stop_on_stall && self.indefinite;
         (res <= spec.tol && !at_saddle) || !res.is_finite() || it == spec.max_iter || stalled
     }
+}
+
+/// The last iterate of a final stage whose residual was at or below
+/// [`StageSpec::settled_residual`]: where the stage returns if the next step
+/// raises the residual.
+struct SettledIterate {
+    /// The field.
+    f: Vec<C64>,
+    /// Its scaled residual.
+    residual: f64,
+    /// Its energy.
+    energy: f64,
 }
 
 /// μ after a failed factorization or a strongly cut step: [`MU_FIRST`]
@@ -458,6 +482,7 @@ impl<'a> NewtonSolver<'a> {
         let ctx = StageContext { params, mass: self.dof_mass(), inv_eps2: 1.0 / (spec.eps * spec.eps) };
         let mut state = StageState::new(spec.mu_start);
         let mut trial = f.to_vec();
+        let mut settled: Option<SettledIterate> = None;
         let mut out = StageOutcome {
             iterations: 0,
             residual: f64::INFINITY,
@@ -483,6 +508,18 @@ impl<'a> NewtonSolver<'a> {
                 krylov_iterations: 0,
                 level: 0,
             };
+            if let Some(kept) = settled.take_if(|k| res > k.residual) {
+                // The last step started a drift: undo it (`FINAL_SETTLED_RESIDUAL`).
+                f.copy_from_slice(&kept.f);
+                (out.residual, out.energy) = (kept.residual, kept.energy);
+                out.converged = true;
+                out.plateau = kept.residual > spec.tol;
+                out.history.push(record);
+                break;
+            }
+            if !spec.stop_on_stall && res <= spec.settled_residual && !state.indefinite {
+                settled = Some(SettledIterate { f: f.to_vec(), residual: res, energy: asm.energy });
+            }
             let singular_now = singular_vertices.filter(|_| !spec.stop_on_stall).map(|sv| sv(f));
             let stalled = state.stalled(spec, it, asm.energy, res, singular_now);
             if state.ends(spec, it, res, stalled) {
@@ -686,6 +723,7 @@ mod tests {
                 max_iter: 40,
                 stop_on_stall: false,
                 mu_start: if s > 0 { 1.0 } else { 0.0 },
+                settled_residual: 0.0,
             };
             let out = solver.minimize(&mut f, &params, &spec, None, &Progress::none()).unwrap();
             history.extend_from_slice(&out.history);
@@ -693,6 +731,57 @@ mod tests {
             energy = out.energy;
         }
         (energy, f, history)
+    }
+
+    /// The final stage at ε = 0.1 on a disk with a fixed boundary (four
+    /// vortices) from the continuation 0.4, 0.2, with `settled_residual`;
+    /// returns the stage's outcome, its field and that field's residual
+    /// recomputed from scratch.
+    fn vortex_stage(settled_residual: f64) -> (StageOutcome, f64) {
+        let mesh = fixtures::disk(12);
+        let topo = Topology::new(&mesh);
+        let disc = Discretization::new(&mesh, &topo, 4);
+        let fixed: Vec<bool> = (0..topo.n_edges()).map(|e| topo.is_boundary_edge(EdgeId::new(e))).collect();
+        let sys = NewtonSystem::new(&topo, &disc, &fixed).unwrap();
+        let weak = vec![false; topo.n_edges()];
+        let mut solver = NewtonSolver::new(&topo, &disc, &sys);
+        let mut f = vec![C64::new(1.0, 0.0); topo.n_edges()];
+        let mut last = None;
+        for (s, eps) in [0.4, 0.2, 0.1].into_iter().enumerate() {
+            let params = EnergyParams { inv_eps2: 1.0 / (eps * eps), weak_coef: 0.0, weak_edges: &weak };
+            let spec = StageSpec {
+                eps,
+                tol: 1e-10,
+                max_iter: 40,
+                stop_on_stall: s < 2,
+                mu_start: if s > 0 { 1.0 } else { 0.0 },
+                settled_residual: if s == 2 { settled_residual } else { 0.0 },
+            };
+            let out = solver.minimize(&mut f, &params, &spec, None, &Progress::none()).unwrap();
+            let asm = sys.assemble(&topo, &disc, &f, &params, HessianKind::Exact);
+            last = Some((out, solver.residual(&asm.grad, eps)));
+        }
+        last.unwrap()
+    }
+
+    #[test]
+    fn a_step_that_raises_a_settled_residual_is_undone() {
+        // Without the rule the vortices drift: the residual falls to ~4e-6,
+        // jumps to ~2e-4 and the plateau rule ends the stage higher.
+        let (plain, plain_res) = vortex_stage(0.0);
+        let residuals: Vec<f64> = plain.history.iter().map(|r| r.residual).collect();
+        let best = residuals.iter().copied().fold(f64::INFINITY, f64::min);
+        let at = residuals.iter().position(|&r| r == best).unwrap();
+        assert!(at + 1 < residuals.len() && residuals[at + 1] > 10.0 * best, "{residuals:?}");
+        assert!(plain_res > best, "{residuals:?}");
+        // With it, the stage ends on the small-residual iterate, one step
+        // after it (the step that raised the residual is undone).
+        let (settled, settled_res) = vortex_stage(1e-4);
+        assert!(settled.converged && settled.plateau);
+        assert_eq!(settled.history.len(), at + 2);
+        assert_eq!(settled.residual, best);
+        assert!((settled_res - best).abs() <= 1e-12 * best, "{settled_res} vs {best}");
+        assert!(settled.history.last().unwrap().residual > best);
     }
 
     #[test]
