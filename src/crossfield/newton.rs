@@ -97,10 +97,10 @@ pub const KRYLOV_MIN_DOFS: usize = 200_000;
 /// runs out is paid on top of the refactorization, so few iterations pay
 /// best (`docs/decisions.md`).
 const KRYLOV_MAX_ITER: usize = 5;
-/// From this many real unknowns on, the factorization is ordered by METIS
-/// nested dissection on the 2×2 blocks instead of AMD: a third less fill
-/// and faster numeric factorizations for a slower symbolic analysis
-/// (`docs/decisions.md`).
+/// From this many real unknowns on, the factorization is ordered by a
+/// nested dissection of the mesh's vertices
+/// ([`NewtonSystem::vertex_dissection_order`]) instead of AMD: a third less
+/// fill and faster numeric factorizations (`docs/decisions.md`).
 const NESTED_DISSECTION_MIN_DOFS: usize = 200_000;
 /// Final stage: Newton steps over which the singular vertices must stay the
 /// same (with the residual below [`FINAL_STALL_RESIDUAL`]) for the stage to
@@ -356,7 +356,7 @@ impl<'a> NewtonSolver<'a> {
         }
         let a = self.sys.matrix(vec![0.0; self.sys.n_values()])?;
         let ordering = if a.nrows() >= NESTED_DISSECTION_MIN_DOFS {
-            FillOrdering::NestedDissection { block: 2 }
+            FillOrdering::Given(self.sys.vertex_dissection_order(self.topo)?)
         } else {
             FillOrdering::Amd
         };

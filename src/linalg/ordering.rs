@@ -71,14 +71,31 @@ pub fn nested_dissection(a: SymbolicSparseColMatRef<'_, usize>, block: usize) ->
     if adjncy.is_empty() {
         return Ok((0..n).collect());
     }
+    let perm = graph_nested_dissection(xadj, adjncy)?;
+    let mut out = Vec::with_capacity(n);
+    for &p in &perm {
+        out.extend(p * block..(p + 1) * block);
+    }
+    Ok(out)
+}
+
+/// METIS nested dissection (`METIS_NodeND`) of the symmetric graph given in
+/// CSR form (`xadj`: `n + 1` offsets, `adjncy`: neighbours, no self loops,
+/// each edge in both rows); returns the permutation new → old.
+///
+/// # Errors
+/// [`LinalgError::Internal`] when METIS fails or returns an invalid permutation.
+pub fn graph_nested_dissection(mut xadj: Vec<i32>, mut adjncy: Vec<i32>) -> Result<Vec<usize>, LinalgError> {
+    let nb = xadj.len().saturating_sub(1);
+    if nb <= 1 || adjncy.is_empty() {
+        return Ok((0..nb).collect());
+    }
     let mut perm = vec![0i32; nb];
     let mut iperm = vec![0i32; nb];
     let status = {
         let _guard = METIS_LOCK.lock().unwrap_or_else(|poisoned| poisoned.into_inner());
         let mut nvtxs = nb as i32;
         let mut options = [0i32; metis_sys::METIS_NOPTIONS as usize];
-        let mut xadj = xadj;
-        let mut adjncy = adjncy;
         // The crate denies unsafe code; this FFI call is the one exception.
         #[allow(unsafe_code)]
         // SAFETY: the arrays have the sizes METIS expects (nvtxs + 1,
@@ -99,15 +116,10 @@ pub fn nested_dissection(a: SymbolicSparseColMatRef<'_, usize>, block: usize) ->
     if status != metis_sys::rstatus_et_METIS_OK {
         return Err(LinalgError::Internal(format!("METIS_NodeND failed with status {status}")));
     }
-    let mut out = Vec::with_capacity(n);
-    for &p in &perm {
-        let p = p as usize;
-        if p >= nb {
-            return Err(LinalgError::Internal("METIS_NodeND returned an invalid permutation".into()));
-        }
-        out.extend(p * block..(p + 1) * block);
+    if perm.iter().any(|&p| p < 0 || p as usize >= nb) {
+        return Err(LinalgError::Internal("METIS_NodeND returned an invalid permutation".into()));
     }
-    Ok(out)
+    Ok(perm.into_iter().map(|p| p as usize).collect())
 }
 
 /// Inverse of a permutation given as new → old.

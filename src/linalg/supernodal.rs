@@ -32,13 +32,17 @@ use faer::sparse::linalg::cholesky::{
 use faer::{Conj, MatMut, Side};
 
 /// Fill-reducing ordering of a [`SupernodalCholesky`].
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+#[derive(Debug, Clone, PartialEq, Eq)]
 pub enum FillOrdering {
     /// Approximate minimum degree (faer).
     Amd,
     /// METIS nested dissection of the graph of blocks of this many
     /// consecutive unknowns (1 = scalar graph).
     NestedDissection { block: usize },
+    /// A permutation (new → old) computed by the caller, who knows a
+    /// smaller graph to order (the crossfield: the mesh vertices instead of
+    /// its edges' unknowns).
+    Given(Vec<usize>),
 }
 
 /// Supernodal sparse Cholesky of a symmetric positive definite matrix given
@@ -73,6 +77,12 @@ impl std::fmt::Debug for SupernodalCholesky {
     }
 }
 
+/// Whether `perm` holds each of `0..n` once.
+fn is_permutation(perm: &[usize], n: usize) -> bool {
+    let mut seen = vec![false; n];
+    perm.len() == n && perm.iter().all(|&p| p < n && !std::mem::replace(&mut seen[p], true))
+}
+
 impl SupernodalCholesky {
     /// Symbolic analysis of the pattern of `a` (lower triangle).
     ///
@@ -96,6 +106,12 @@ impl SupernodalCholesky {
         let fwd = match ordering {
             FillOrdering::Amd => amd_ordering(a)?,
             FillOrdering::NestedDissection { block } => super::ordering::nested_dissection(a.symbolic(), block)?,
+            FillOrdering::Given(perm) => {
+                if !is_permutation(&perm, a.nrows()) {
+                    return Err(LinalgError::Internal("the given ordering is not a permutation".into()));
+                }
+                perm
+            }
         };
         let fwd = (!fwd.iter().enumerate().all(|(i, &p)| i == p)).then_some(fwd);
         // ... is applied once to the pattern, and the factorization analyses
@@ -414,8 +430,12 @@ mod tests {
             t.to_matrix().unwrap()
         };
         let g = grid(40);
-        for ord in [FillOrdering::Amd, FillOrdering::NestedDissection { block: 1 }] {
-            let mut c = SupernodalCholesky::analyze_with(&g, ord).unwrap();
+        for ord in [
+            FillOrdering::Amd,
+            FillOrdering::NestedDissection { block: 1 },
+            FillOrdering::Given((0..1600).rev().collect()),
+        ] {
+            let mut c = SupernodalCholesky::analyze_with(&g, ord.clone()).unwrap();
             c.factor(&g).unwrap();
             let b: Vec<f64> = (0..g.nrows()).map(|i| ((i * 7) % 13) as f64 - 6.0).collect();
             let mut x = b.clone();
