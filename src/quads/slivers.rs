@@ -22,7 +22,14 @@
 //! edge outside the region). The region grows by one ring of edge
 //! neighbours at a time, [`MAX_RINGS`] times, and the disk whose best
 //! triangulation is best replaces its triangles when that beats the disk's
-//! own worst triangle by [`MIN_GAIN`].
+//! own worst triangle by [`MIN_GAIN`]. A cluster that holds a folded
+//! triangle (shape ≤ 0) keeps growing, up to [`MAX_RINGS_FOLDED`] rings,
+//! while no disk has an unfolded triangulation: a fold on a strip one
+//! triangle wide (the chamfers of a CAD part, triangulated through a disk
+//! map that made their reflex corners convex) grows by two triangles a
+//! ring and needs about ten rings before its loop reaches points that an
+//! upright fan can join; a folded triangle left there becomes an inverted
+//! quad.
 //! A loop of `n` vertices around `k` removed inside vertices held
 //! `n − 2 + 2k` triangles and gets `n − 2`: every model face keeps the
 //! parity of its triangle count. Regions are taken in seed order on one
@@ -42,6 +49,9 @@ pub const SLIVER_SHAPE: f64 = 0.1;
 pub const MIN_GAIN: f64 = 0.02;
 /// Rings of edge neighbours a region may grow by before it is left as it is.
 pub const MAX_RINGS: usize = 3;
+/// Rings a region around a folded triangle may grow by while no disk has
+/// an unfolded triangulation.
+pub const MAX_RINGS_FOLDED: usize = 16;
 /// Passes over the slivers at most.
 pub const MAX_PASSES: usize = 4;
 /// Loops longer than this are not re-triangulated (the O(n³) bound).
@@ -296,7 +306,8 @@ impl Editor<'_> {
     }
 
     /// Re-triangulate the region around `seed`: of the disks it grows into
-    /// (ring by ring), the one whose best triangulation is best, when that
+    /// (ring by ring, [`MAX_RINGS`] rings, up to [`MAX_RINGS_FOLDED`] around
+    /// a fold that is not undone yet), the one whose best triangulation is best, when that
     /// beats the disk's own worst triangle by [`MIN_GAIN`] (counted in
     /// `stats` either way). Returns the slivers of the seed's cluster, which
     /// need no second attempt.
@@ -305,7 +316,12 @@ impl Editor<'_> {
         let cluster = self.sliver_cluster(seed, is_sliver);
         let mut region = cluster.clone();
         let mut best: Option<Candidate> = None;
-        for _ in 0..=MAX_RINGS {
+        let folded = cluster.iter().any(|&t| self.shape_of(t) <= 0.0);
+        for rings in 0..=MAX_RINGS_FOLDED {
+            let unfolded = best.as_ref().is_some_and(|b| b.2 > 0.0);
+            if rings > MAX_RINGS && (!folded || unfolded) {
+                break;
+            }
             if let Some((lp, inside)) = self.disk_loop(&region)
                 && lp.len() <= MAX_LOOP
             {
