@@ -49,7 +49,13 @@
 //! is real geometry a quad must not wrap around (at a quarter of the size a
 //! pin of radius `size / 16` gets under two quads per turn, whose corners'
 //! normals are opposite), and the extra quads it costs are bounded by its
-//! area; a scan's noise on a large face stays at the floor. The cap is
+//! area (over the square of the lowest size below); a scan's noise on a large face stays at the floor. Below that
+//! floor a small face's bend still gets [`SEGMENTS_PER_TURN_SMALL_FACE`]
+//! edges per turn (down to [`MIN_SIZE_FRACTION_TURN`] of the size asked):
+//! at 1.2 times its default size, adis16480's pins (radius 0.2 mm) got 5.6
+//! edges per turn from the floor, too few for their quads' corners to face
+//! one way (inverted quads); 8 keep neighbouring corners' normals within
+//! 45°. The cap is
 //! graded (`h(x) ≤ h(y) + g |x − y|`, `g` = [`SIZE_GRADIENT`]) so the
 //! size changes no faster than a front can follow.
 
@@ -93,6 +99,14 @@ pub const MIN_SIZE_FRACTION_SMALL_FACE: f64 = 0.06;
 /// Quads a model face may get from following its curvature below the
 /// floors of the size asked (module documentation).
 pub const QUADS_PER_SMALL_FACE: f64 = 4096.0;
+
+/// Quad edges per full turn of a small model face's bend, at least, below
+/// its floor (module documentation).
+pub const SEGMENTS_PER_TURN_SMALL_FACE: f64 = 8.0;
+
+/// [`SEGMENTS_PER_TURN_SMALL_FACE`] never asks for edges shorter than this
+/// fraction of the size asked.
+pub const MIN_SIZE_FRACTION_TURN: f64 = 0.02;
 
 /// Largest growth of the capped size per unit length.
 pub const SIZE_GRADIENT: f64 = 0.5;
@@ -273,6 +287,7 @@ fn turns_per_length(surface: &TriMesh, topo: &Topology, model: &QuadModel, size:
     let mut turns = vec![0.0f64; surface.n_vertices()];
     let per_radian_surface = SEGMENTS_PER_TURN_SURFACE / std::f64::consts::TAU;
     let per_radian_curve = SEGMENTS_PER_TURN_CURVE / std::f64::consts::TAU;
+    let per_radian_small_face = SEGMENTS_PER_TURN_SMALL_FACE / std::f64::consts::TAU;
     let face_floor = face_floor_fractions(model, size);
     let most_surface = |face: u32| 1.0 / (face_floor[face as usize] * size);
     let curve_floor: Vec<f64> = model
@@ -295,8 +310,12 @@ fn turns_per_length(surface: &TriMesh, topo: &Topology, model: &QuadModel, size:
         // bend is spread over.
         let width = (surface.face_area(f) + surface.face_area(g)) / length;
         if width > 0.0 {
-            let t = (per_radian_surface * dihedral_angle(surface, f, g) / width)
-                .min(most_surface(model.face_per_triangle[f.idx()]));
+            let face = model.face_per_triangle[f.idx()];
+            let kappa = dihedral_angle(surface, f, g) / width;
+            let mut t = (per_radian_surface * kappa).min(most_surface(face));
+            if face_floor[face as usize] < MIN_SIZE_FRACTION_SURFACE {
+                t = t.max((per_radian_small_face * kappa).min(1.0 / (MIN_SIZE_FRACTION_TURN * size)));
+            }
             for v in [a, b] {
                 turns[v.idx()] = turns[v.idx()].max(t);
             }
@@ -494,44 +513,65 @@ mod tests {
         let map = curvature_bounded_sizes(SizeMap::uniform(plane.n_vertices(), 0.3), &plane, &topo, &model, 0.3);
         assert!(map.size_per_vertex.iter().all(|&h| h == 0.3));
     }
-    /// A pin (open 36-sided prism of radius `size / 16`, 10° folds, its
-    /// two rims its curves) on a model face of area `a`: a small face may
-    /// follow its bends below the size asked's floors, down to
+    /// Sizes on a pin (open 36-sided prism of radius `radius`, 10° folds,
+    /// its two rims its curves) of height `height`, with the size asked 1:
+    /// per vertex the size, whether it is on a rim, and the pin's area and
+    /// circumference.
+    fn sizes_on_pin(radius: f64, height: f64) -> (Vec<f64>, Vec<bool>, f64, f64) {
+        let size = 1.0;
+        let mesh = fixtures::cylinder(radius, height, 36, 8);
+        let topo = Topology::new(&mesh);
+        let model =
+            crate::quads::quad_model(&mesh, &topo, &crate::atlas::features::detect_features(&mesh, &topo, 40.0));
+        assert_eq!(model.n_faces, 1);
+        let map = curvature_bounded_sizes(SizeMap::uniform(mesh.n_vertices(), size), &mesh, &topo, &model, size);
+        let on_rim: Vec<bool> = mesh.positions.iter().map(|p| p.z == 0.0 || p.z == height).collect();
+        let circumference = 36.0 * 2.0 * radius * 5f64.to_radians().sin();
+        (map.size_per_vertex, on_rim, mesh.area(), circumference)
+    }
+
+    /// A pin of radius `size / 8` on a model face of area `a`: a small face
+    /// may follow its bends below the size asked's floors, down to
     /// `√(a / QUADS_PER_SMALL_FACE)`, at least
     /// [`MIN_SIZE_FRACTION_SMALL_FACE`] of the size; a large one keeps the
     /// floors (¼ of the size on the surface, ⅛ on the rims). Its own caps
-    /// (circumference / 16 and / 24) are below every floor, so each vertex
-    /// gets exactly its floor.
+    /// (circumference / 16 and / 24) are below every floor and its 8 edges
+    /// per turn above them, so each vertex gets exactly its floor.
     #[test]
     fn a_small_face_follows_its_bends_below_the_floor_of_the_size_asked() {
-        let size = 1.0;
-        let radius = size / 16.0;
-        let circumference = 36.0 * 2.0 * radius * 5f64.to_radians().sin();
-        let sizes_on_pin = |height: f64| {
-            let mesh = fixtures::cylinder(radius, height, 36, 8);
-            let topo = Topology::new(&mesh);
-            let model =
-                crate::quads::quad_model(&mesh, &topo, &crate::atlas::features::detect_features(&mesh, &topo, 40.0));
-            assert_eq!(model.n_faces, 1);
-            let map = curvature_bounded_sizes(SizeMap::uniform(mesh.n_vertices(), size), &mesh, &topo, &model, size);
-            assert!(circumference / 16.0 < MIN_SIZE_FRACTION_SMALL_FACE * size);
-            let on_rim: Vec<bool> = mesh.positions.iter().map(|p| p.z == 0.0 || p.z == height).collect();
-            (map.size_per_vertex, on_rim, mesh.area())
-        };
-        // A 0.5-long pin (area 0.2 size²): the lowest floor everywhere.
-        let (h, _, _) = sizes_on_pin(0.5);
+        let (size, radius) = (1.0, 1.0 / 8.0);
+        // A 0.5-long pin (area 0.4 size²): the lowest floor everywhere.
+        let (h, _, _, circumference) = sizes_on_pin(radius, 0.5);
+        assert!(circumference / 16.0 < MIN_SIZE_FRACTION_SMALL_FACE * size);
+        assert!(circumference / SEGMENTS_PER_TURN_SMALL_FACE > MIN_SIZE_FRACTION_SMALL_FACE * size);
         assert!(h.iter().all(|&h| (h - MIN_SIZE_FRACTION_SMALL_FACE * size).abs() < 1e-12), "{h:?}");
-        // 104 long (area 41 size²): the floor its area affords, about 0.1.
-        let (h, _, area) = sizes_on_pin(104.0);
+        // 42 long (area 33 size²): the floor its area affords, about 0.09.
+        let (h, _, area, _) = sizes_on_pin(radius, 42.0);
         let affordable = (area / QUADS_PER_SMALL_FACE).sqrt();
         assert!(affordable > MIN_SIZE_FRACTION_SMALL_FACE && affordable < MIN_SIZE_FRACTION_CURVE);
         assert!(h.iter().all(|&h| (h - affordable * size).abs() < 1e-12), "{affordable}: {h:?}");
-        // 800 long (area 314 size²): the floors of the size asked.
-        let (h, on_rim, _) = sizes_on_pin(800.0);
+        // 800 long (area 628 size²): the floors of the size asked.
+        let (h, on_rim, _, _) = sizes_on_pin(radius, 800.0);
         for (h, rim) in h.iter().zip(on_rim) {
             let floor = if rim { MIN_SIZE_FRACTION_CURVE } else { MIN_SIZE_FRACTION_SURFACE };
             assert!((h - floor * size).abs() < 1e-12, "rim {rim}: h = {h}");
         }
+    }
+
+    /// A small face's bend keeps [`SEGMENTS_PER_TURN_SMALL_FACE`] edges per
+    /// turn below its floor: a pin of radius `size / 16` gets a circumference
+    /// / 8 under the lowest floor (0.06 of the size would give it 6.5 edges
+    /// per turn), and one of radius `size / 100` stops at
+    /// [`MIN_SIZE_FRACTION_TURN`] of the size.
+    #[test]
+    fn a_small_face_gets_eight_edges_per_turn_below_its_floor() {
+        let (h, _, _, circumference) = sizes_on_pin(1.0 / 16.0, 0.5);
+        let eighth = circumference / SEGMENTS_PER_TURN_SMALL_FACE;
+        assert!(eighth < MIN_SIZE_FRACTION_SMALL_FACE && eighth > MIN_SIZE_FRACTION_TURN);
+        assert!(h.iter().all(|&h| (h - eighth).abs() < 1e-9), "{eighth}: {h:?}");
+        let (h, _, _, circumference) = sizes_on_pin(1.0 / 100.0, 0.5);
+        assert!(circumference / SEGMENTS_PER_TURN_SMALL_FACE < MIN_SIZE_FRACTION_TURN);
+        assert!(h.iter().all(|&h| (h - MIN_SIZE_FRACTION_TURN).abs() < 1e-12), "{h:?}");
     }
 
     use crate::crossfield::frames::{edge_direction, edge_normal};
