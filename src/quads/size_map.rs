@@ -49,15 +49,15 @@
 //! is real geometry a quad must not wrap around (at a quarter of the size a
 //! pin of radius `size / 16` gets under two quads per turn, whose corners'
 //! normals are opposite), and the extra quads it costs are bounded by its
-//! area (over the square of the lowest size below); a scan's noise on a large face stays at the floor. Below that
-//! floor a small face's bend still gets [`SEGMENTS_PER_TURN_SMALL_FACE`]
-//! edges per turn (down to [`MIN_SIZE_FRACTION_TURN`] of the size asked):
-//! at 1.2 times its default size, adis16480's pins (radius 0.2 mm) got 5.6
-//! edges per turn from the floor, too few for their quads' corners to face
-//! one way (inverted quads); 8 keep neighbouring corners' normals within
-//! 45°. The cap is
-//! graded (`h(x) ≤ h(y) + g |x − y|`, `g` = [`SIZE_GRADIENT`]) so the
-//! size changes no faster than a front can follow.
+//! area (over the square of the lowest size below); a scan's noise on a
+//! large face stays at the floor. Below that floor a small face's bend
+//! still gets [`SEGMENTS_PER_TURN_SMALL_FACE`] edges per turn (down to
+//! [`MIN_SIZE_FRACTION_TURN`] of the size asked): with about 6 or fewer
+//! edges per turn a pin's triangulation has too few points around it for
+//! its quads' corners to face one way (inverted quads), and 8 keep
+//! neighbouring corners' normals within 45°. The cap is graded
+//! (`h(x) ≤ h(y) + g |x − y|`, `g` = [`SIZE_GRADIENT`]) so the size
+//! changes no faster than a front can follow.
 
 use nalgebra::Complex;
 

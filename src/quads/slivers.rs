@@ -27,9 +27,9 @@
 //! while no disk has an unfolded triangulation: a fold on a strip one
 //! triangle wide (the chamfers of a CAD part, triangulated through a disk
 //! map that made their reflex corners convex) grows by two triangles a
-//! ring and needs about ten rings before its loop reaches points that an
-//! upright fan can join; a folded triangle left there becomes an inverted
-//! quad.
+//! ring and can need ten or more rings before its loop reaches points that
+//! an upright fan can join; a folded triangle left there becomes an
+//! inverted quad.
 //! A loop of `n` vertices around `k` removed inside vertices held
 //! `n − 2 + 2k` triangles and gets `n − 2`: every model face keeps the
 //! parity of its triangle count. Regions are taken in seed order on one
@@ -307,9 +307,9 @@ impl Editor<'_> {
 
     /// Re-triangulate the region around `seed`: of the disks it grows into
     /// (ring by ring, [`MAX_RINGS`] rings, up to [`MAX_RINGS_FOLDED`] around
-    /// a fold that is not undone yet), the one whose best triangulation is best, when that
-    /// beats the disk's own worst triangle by [`MIN_GAIN`] (counted in
-    /// `stats` either way). Returns the slivers of the seed's cluster, which
+    /// a fold that is not undone yet), the one whose best triangulation is
+    /// best, when that beats the disk's own worst triangle by [`MIN_GAIN`]
+    /// (counted in `stats` either way). Returns the slivers of the seed's cluster, which
     /// need no second attempt.
     fn repair(&mut self, seed: u32, is_sliver: &[bool], stats: &mut SliverStats) -> Vec<u32> {
         let face = self.tri.model_face_per_triangle[seed as usize];
