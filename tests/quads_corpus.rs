@@ -114,36 +114,64 @@ gmsh.finalize()
 print(json.dumps(out))
 "#;
 
+/// One run of the stage a check makes: a label for the messages, the
+/// input, the scratch directory name and extra command-line arguments.
+struct QuadsRun {
+    label: String,
+    input: PathBuf,
+    name: String,
+    extra: Vec<String>,
+}
+
 /// Runs every file of `plan` and asserts the report's counts and Gmsh's
-/// rating; all failures are collected, then reported together.
+/// rating ([`check_runs`]).
 fn check_inputs(suite: &str, keep: impl Fn(&Plan) -> bool) {
+    let runs = INPUTS
+        .iter()
+        .filter(|x| keep(&x.2))
+        .map(|&(folder, name, plan)| QuadsRun {
+            label: format!("{name} ({plan:?})"),
+            input: input_path(folder, name),
+            name: name.to_string(),
+            extra: Vec::new(),
+        })
+        .collect();
+    check_runs(suite, runs);
+}
+
+/// Runs each of `runs` and asserts its report's counts (quads, no
+/// triangle, no inverted quad) and Gmsh's rating of its `quads.msh` (every
+/// quad rated, min SICN > 0); all failures are collected, then reported
+/// together.
+fn check_runs(suite: &str, runs: Vec<QuadsRun>) {
     let mut failures = Vec::new();
     let mut rated = Vec::new();
-    for &(folder, name, plan) in INPUTS.iter().filter(|x| keep(&x.2)) {
-        let out = scratch(suite, name);
-        match run_quads(&input_path(folder, name), &out, 2) {
-            Err(e) => failures.push(format!("{name}: the stage failed: {}", e.trim())),
+    for run in &runs {
+        let out = scratch(suite, &run.name);
+        let extra: Vec<&str> = run.extra.iter().map(String::as_str).collect();
+        match run_quads_with(&run.input, &out, 2, &extra) {
+            Err(e) => failures.push(format!("{}: the stage failed: {}", run.label, e.trim())),
             Ok(report) => {
                 let q = &report["stages"]["quads"];
                 let n_quads = q["n_quads"].as_u64().unwrap_or(0);
                 if n_quads == 0 || q["n_triangles"] != 0 || q["n_inverted"] != 0 {
                     failures.push(format!(
-                        "{name} ({plan:?}): {} quads, {} triangles, {} inverted",
-                        q["n_quads"], q["n_triangles"], q["n_inverted"]
+                        "{}: {} quads, {} triangles, {} inverted",
+                        run.label, q["n_quads"], q["n_triangles"], q["n_inverted"]
                     ));
                 }
-                rated.push((name, out.join("quads.msh"), n_quads));
+                rated.push((&run.label, out.join("quads.msh"), n_quads));
             }
         }
     }
     if !rated.is_empty() {
         let paths: Vec<&str> = rated.iter().map(|(_, p, _)| path_str(p)).collect();
         let r = python(GMSH_SICN, &paths);
-        for (name, path, n_quads) in &rated {
+        for (label, path, n_quads) in &rated {
             let g = &r[path_str(path)];
             let min = g["min_sicn"].as_f64();
             if g["n_rated"].as_u64() != Some(*n_quads) || !min.is_some_and(|m| m > 0.0) {
-                failures.push(format!("{name}: Gmsh rated {} of {n_quads} quads, min SICN {:?}", g["n_rated"], min));
+                failures.push(format!("{label}: Gmsh rated {} of {n_quads} quads, min SICN {:?}", g["n_rated"], min));
             }
         }
     }
@@ -195,32 +223,22 @@ fn the_quads_stage_passes_its_checks_and_gmsh_on_the_long_inputs() {
 /// rating.
 #[test]
 fn adis16480_passes_from_0_6_to_2_times_its_default_size() {
-    let input = input_path("corpus", "adis16480.stl");
+    let suite = "quads_corpus_sizes";
     let default_size = 0.003_245_278_572_259_251_6;
-    let mut failures = Vec::new();
-    let mut rated = Vec::new();
-    for factor in [0.6, 0.7, 1.2, 2.0] {
-        let out = scratch("quads_corpus_sizes", &format!("adis16480.{factor}"));
-        let params = out.with_file_name(format!("adis16480.{factor}.params.json"));
-        std::fs::write(&params, format!(r#"{{"quads":{{"size":{}}}}}"#, factor * default_size)).unwrap();
-        match run_quads_with(&input, &out, 2, &["--params", path_str(&params)]) {
-            Err(e) => failures.push(format!("{factor}× size: the stage failed: {}", e.trim())),
-            Ok(report) => {
-                let q = &report["stages"]["quads"];
-                assert_eq!(q["n_triangles"], 0, "{factor}× size");
-                assert_eq!(q["n_inverted"], 0, "{factor}× size");
-                rated.push((out.join("quads.msh"), q["n_quads"].as_u64().unwrap()));
+    let runs = [0.6, 0.7, 1.2, 2.0]
+        .into_iter()
+        .map(|factor| {
+            let params = Path::new(env!("CARGO_TARGET_TMPDIR")).join(format!("{suite}.adis16480.{factor}.json"));
+            std::fs::write(&params, format!(r#"{{"quads":{{"size":{}}}}}"#, factor * default_size)).unwrap();
+            QuadsRun {
+                label: format!("adis16480 at {factor}× its default size"),
+                input: input_path("corpus", "adis16480.stl"),
+                name: format!("adis16480.{factor}"),
+                extra: vec!["--params".to_string(), path_str(&params).to_string()],
             }
-        }
-    }
-    assert!(failures.is_empty(), "{}", failures.join("\n"));
-    let paths: Vec<&str> = rated.iter().map(|(p, _)| path_str(p)).collect();
-    let r = python(GMSH_SICN, &paths);
-    for (path, n_quads) in &rated {
-        let g = &r[path_str(path)];
-        assert_eq!(g["n_rated"].as_u64(), Some(*n_quads), "{}", path.display());
-        assert!(g["min_sicn"].as_f64().is_some_and(|m| m > 0.0), "{}: min SICN {}", path.display(), g["min_sicn"]);
-    }
+        })
+        .collect();
+    check_runs(suite, runs);
 }
 
 #[test]

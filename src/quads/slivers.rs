@@ -309,8 +309,8 @@ impl Editor<'_> {
     /// (ring by ring, [`MAX_RINGS`] rings, up to [`MAX_RINGS_FOLDED`] around
     /// a fold that is not undone yet), the one whose best triangulation is
     /// best, when that beats the disk's own worst triangle by [`MIN_GAIN`]
-    /// (counted in `stats` either way). Returns the slivers of the seed's cluster, which
-    /// need no second attempt.
+    /// (counted in `stats` either way). Returns the slivers of the seed's
+    /// cluster, which need no second attempt.
     fn repair(&mut self, seed: u32, is_sliver: &[bool], stats: &mut SliverStats) -> Vec<u32> {
         let face = self.tri.model_face_per_triangle[seed as usize];
         let cluster = self.sliver_cluster(seed, is_sliver);
