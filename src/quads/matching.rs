@@ -68,10 +68,10 @@ pub struct Completion {
 }
 
 /// Completes `partner` (the partner of each triangle or [`NONE`]) by
-/// augmenting paths over the pairs of `graph`, roots taken in index order.
-/// Once [`MAX_FAILED_ROOTS_PER_FACE`] roots of a model face
-/// (`model_face_per_triangle`) have failed, its later roots are not
-/// searched.
+/// augmenting paths over the pairs of `graph`, roots taken in index order
+/// among the free triangles of the model faces (`model_face_per_triangle`)
+/// that `searched` accepts. Once [`MAX_FAILED_ROOTS_PER_FACE`] roots of a
+/// model face have failed, its later roots are not searched.
 ///
 /// # Errors
 /// [`Cancelled`] when `progress` is cancelled.
@@ -79,11 +79,14 @@ pub fn complete_matching(
     graph: &DualGraph,
     model_face_per_triangle: &[u32],
     partner: &mut [u32],
+    searched: &dyn Fn(u32) -> bool,
     progress: &Progress,
 ) -> Result<Completion, Cancelled> {
     let n_faces = model_face_per_triangle.iter().map(|&f| f as usize + 1).max().unwrap_or(0);
     let mut failures_per_face = vec![0usize; n_faces];
-    let roots: Vec<u32> = (0..partner.len() as u32).filter(|&t| partner[t as usize] == NONE).collect();
+    let roots: Vec<u32> = (0..partner.len() as u32)
+        .filter(|&t| partner[t as usize] == NONE && searched(model_face_per_triangle[t as usize]))
+        .collect();
     let mut out = Completion::default();
     let mut window = Window::new(partner.len());
     for (i, &root) in roots.iter().enumerate() {

@@ -29,6 +29,13 @@ pub const NONE: u32 = u32::MAX;
 /// nearly flat corner is one smoothing step away from inverting.
 pub const MIN_PAIR_SCALED_JACOBIAN: f64 = 0.02;
 
+/// Floor of the pairs a face that the candidates cannot pair all-quad may
+/// use as well ([`super::recombine`]): any quad that is convex against the
+/// surface. Those faces were midpoint-subdivided whole, with the faces
+/// next to them, which quarters the size asked for; a nearly flat corner
+/// is left to the later steps (smoothing, pillowing) instead.
+pub const MIN_POOR_PAIR_SCALED_JACOBIAN: f64 = 0.0;
+
 /// Floor of `ErrDir` in the cost, so a diagonal exactly along the cross
 /// gives a large finite cost (the pair stays usable by the completion).
 const MIN_ERR_DIR: f64 = 1e-3;
@@ -63,8 +70,15 @@ pub struct DualGraph {
 }
 
 impl DualGraph {
-    /// The dual graph of `tri` (whose indices the caller has checked).
+    /// The dual graph of `tri` (whose indices the caller has checked), its
+    /// candidates the pairs above [`MIN_PAIR_SCALED_JACOBIAN`].
     pub fn new(tri: &SurfaceTriangulation) -> DualGraph {
+        Self::with_floor(tri, &|_| MIN_PAIR_SCALED_JACOBIAN)
+    }
+
+    /// The dual graph of `tri` whose candidates in model face `f` are the
+    /// pairs whose quad has a scaled Jacobian above `floor(f)`.
+    pub fn with_floor(tri: &SurfaceTriangulation, floor: &dyn Fn(u32) -> f64) -> DualGraph {
         let n = tri.triangles.len();
         let mut curve: Vec<(u32, u32)> = tri.curve_edges.iter().map(|&(_, [a, b])| (a.min(b), a.max(b))).collect();
         curve.sort_unstable();
@@ -95,7 +109,7 @@ impl DualGraph {
                 if t1 != t2 && tri.model_face_per_triangle[t1 as usize] == tri.model_face_per_triangle[t2 as usize] {
                     push_slot(&mut graph.neighbours_per_triangle[t1 as usize], t2);
                     push_slot(&mut graph.neighbours_per_triangle[t2 as usize], t1);
-                    if let Some(pair) = candidate_pair(tri, t1, t2) {
+                    if let Some(pair) = candidate_pair(tri, t1, t2, floor(tri.model_face_per_triangle[t1 as usize])) {
                         graph.pairs.push(pair);
                     }
                 }
@@ -145,8 +159,8 @@ fn push_slot(slots: &mut [u32; 3], value: u32) {
 }
 
 /// The quad of triangles `t1 < t2` (sharing one edge) and its cost, or
-/// `None` when it is not strictly convex or degenerate.
-fn candidate_pair(tri: &SurfaceTriangulation, t1: u32, t2: u32) -> Option<Pair> {
+/// `None` when its scaled Jacobian is not above `floor` or it is degenerate.
+fn candidate_pair(tri: &SurfaceTriangulation, t1: u32, t2: u32, floor: f64) -> Option<Pair> {
     let (t1, t2) = (t1.min(t2), t1.max(t2));
     let quad = quad_of_triangles(&tri.triangles[t1 as usize], &tri.triangles[t2 as usize])?;
     let p = quad.map(|v| tri.vertices.positions[v as usize]);
@@ -156,7 +170,7 @@ fn candidate_pair(tri: &SurfaceTriangulation, t1: u32, t2: u32) -> Option<Pair> 
     if !(len > 0.0) {
         return None;
     }
-    if !(scaled_jacobian(&p, &(n / len)) > MIN_PAIR_SCALED_JACOBIAN) {
+    if !(scaled_jacobian(&p, &(n / len)) > floor) {
         return None;
     }
     // The removed diagonal joins quad corners 0 and 2.

@@ -1,6 +1,10 @@
-//! Step 5c of the quads stage: quads still inverted or degenerate after
-//! smoothing are repaired by pillowing a small region around them and
-//! untangling its inside (issue 13 §5: no inverted quad on any output).
+//! Step 5c of the quads stage: quads still inverted, degenerate or nearly
+//! flat (below [`ACCEPTED_SCALED_JACOBIAN`]) after smoothing are repaired
+//! by pillowing a small region around them and untangling its inside
+//! (issue 13 §5: no inverted quad on any output). A repair of a quad that
+//! was valid is kept only when it raises the worst scaled Jacobian there:
+//! the nearly flat ones are mostly the poor pairs recombination takes in a
+//! face it cannot otherwise pair all-quad ([`super::recombine`]).
 //!
 //! Why moving vertices is not enough. The quads that survive smoothing have
 //! too few corners somewhere: a vertex on a straight curve that lies in one
@@ -52,12 +56,19 @@ use super::smooth::quad_scaled_jacobian;
 use super::surface_mesh::{ModelEntity, QuadMesh};
 use crate::geom::Vec3;
 
-/// A repaired region is accepted when its worst quad reaches this scaled
-/// Jacobian (a margin over 0 that Gmsh's `minSICN` also sees as valid).
-pub const ACCEPTED_SCALED_JACOBIAN: f64 = 0.02;
+/// Quads below this scaled Jacobian are repaired, and a repaired region is
+/// accepted when its worst quad reaches it: a margin over 0 that Gmsh's
+/// `minSICN` also sees as valid, high enough to catch the nearly flat
+/// corners of poor pairs (at most 0.02).
+pub const ACCEPTED_SCALED_JACOBIAN: f64 = 0.1;
 
 /// Rings of quads around a cluster tried before it is left as it is.
 const MAX_RINGS: usize = 3;
+
+/// Rings tried around a cluster whose quads are all valid (nearly flat, not
+/// inverted): they do not fail the stage, and on a mesh with hundreds of
+/// them that no region repairs (gmsh_lever) the wider regions cost seconds.
+const MAX_RINGS_VALID: usize = 1;
 
 /// Largest region (quads) pillowed at once.
 const MAX_REGION_QUADS: usize = 400;
@@ -82,10 +93,11 @@ const COPY_FRACTION: f64 = 0.5;
 /// What pillowing did (for the report).
 #[derive(Debug, Clone, Default, Serialize)]
 pub struct PillowStats {
-    /// Inverted or degenerate quads when the step started.
+    /// Quads below [`ACCEPTED_SCALED_JACOBIAN`] (or not measurable) when
+    /// the step started.
     pub n_bad_before: usize,
-    /// Inverted or degenerate quads when it ended (0 unless a region could
-    /// not be repaired; the check then fails the stage).
+    /// Such quads when it ended (a region that could not be raised to it
+    /// keeps them; the check fails the stage only for inverted ones).
     pub n_bad_after: usize,
     /// Regions pillowed.
     pub n_regions: usize,
@@ -95,8 +107,8 @@ pub struct PillowStats {
     pub seconds: f64,
 }
 
-/// Pillows and untangles regions around every inverted or degenerate quad
-/// of `mesh` (module documentation); returns what it did.
+/// Pillows and untangles regions around every quad of `mesh` below
+/// [`ACCEPTED_SCALED_JACOBIAN`] (module documentation); returns what it did.
 pub fn pillow_bad_quads(mesh: &mut QuadMesh, projector: &SurfaceProjector) -> PillowStats {
     let t = Instant::now();
     let mut bad = bad_quads(mesh, projector);
@@ -117,19 +129,29 @@ pub fn pillow_bad_quads(mesh: &mut QuadMesh, projector: &SurfaceProjector) -> Pi
                 repaired_any = true;
             }
         }
+        // Later rounds retry the inverted quads only: a valid quad no region
+        // raised in this round would cost the same search again.
         bad = bad_quads(mesh, projector);
+        bad.retain(|&q| is_inverted(mesh, projector, q));
         if !repaired_any {
             break;
         }
     }
-    stats.n_bad_after = bad.len();
+    stats.n_bad_after = bad_quads(mesh, projector).len();
     stats.seconds = t.elapsed().as_secs_f64();
     stats
 }
 
-/// Whether quad `q` is inverted or degenerate.
-fn is_bad(mesh: &QuadMesh, projector: &SurfaceProjector, q: u32) -> bool {
+/// Whether quad `q` is inverted or degenerate (or not measurable).
+fn is_inverted(mesh: &QuadMesh, projector: &SurfaceProjector, q: u32) -> bool {
     is_inverted_or_degenerate(quad_scaled_jacobian(&mesh.vertices, projector.surface, &mesh.quads[q as usize]))
+}
+
+/// Whether quad `q` is below [`ACCEPTED_SCALED_JACOBIAN`] (or not
+/// measurable).
+fn is_bad(mesh: &QuadMesh, projector: &SurfaceProjector, q: u32) -> bool {
+    let j = quad_scaled_jacobian(&mesh.vertices, projector.surface, &mesh.quads[q as usize]);
+    is_inverted_or_degenerate(j) || j < ACCEPTED_SCALED_JACOBIAN
 }
 
 /// The inverted or degenerate quads of `mesh`, ascending.
@@ -183,25 +205,33 @@ fn clusters(mesh: &QuadMesh, bad: &[u32]) -> Vec<Vec<u32>> {
 
 /// Repairs one cluster: pillows regions of 0 to [`MAX_RINGS`] rings around
 /// it until one reaches [`ACCEPTED_SCALED_JACOBIAN`]; failing that, keeps
-/// the best attempt that is valid. Returns the quads added, `None` when no
-/// attempt was kept (the mesh is then as before).
+/// the best attempt that is valid and raises the cluster's worst scaled
+/// Jacobian. Returns the quads added, `None` when no attempt was kept (the
+/// mesh is then as before).
 fn repair_cluster(mesh: &mut QuadMesh, projector: &SurfaceProjector, cluster: &[u32]) -> Option<usize> {
     let face = mesh.model_face_per_quad[cluster[0] as usize];
+    let before = cluster
+        .iter()
+        .map(|&q| quad_scaled_jacobian(&mesh.vertices, projector.surface, &mesh.quads[q as usize]))
+        .fold(f64::INFINITY, f64::min);
     let mut best: Option<(usize, f64)> = None;
-    for rings in 0..=MAX_RINGS {
-        let Some(region) = region_around(mesh, cluster, face, rings) else { break };
+    let max_rings = if is_inverted_or_degenerate(before) { MAX_RINGS } else { MAX_RINGS_VALID };
+    // Every attempt is undone before the next, so one index serves them all.
+    let per_vertex = quads_per_vertex(mesh);
+    for rings in 0..=max_rings {
+        let Some(region) = region_around(mesh, &per_vertex, cluster, face, rings) else { break };
         let saved = Saved::of(mesh, &region);
         let worst = pillow_and_untangle(mesh, projector, &region, face);
         if worst >= ACCEPTED_SCALED_JACOBIAN {
             return Some(mesh.quads.len() - saved.n_quads);
         }
-        if !is_inverted_or_degenerate(worst) && best.is_none_or(|(_, w)| worst > w) {
+        if !is_inverted_or_degenerate(worst) && !(worst <= before) && best.is_none_or(|(_, w)| worst > w) {
             best = Some((rings, worst));
         }
         saved.restore(mesh);
     }
     let (rings, _) = best?;
-    let region = region_around(mesh, cluster, face, rings)?;
+    let region = region_around(mesh, &per_vertex, cluster, face, rings)?;
     let n_quads = mesh.quads.len();
     pillow_and_untangle(mesh, projector, &region, face);
     Some(mesh.quads.len() - n_quads)
@@ -210,9 +240,14 @@ fn repair_cluster(mesh: &mut QuadMesh, projector: &SurfaceProjector, cluster: &[
 /// The quads of model face `face` within `rings` rings (through shared
 /// vertices) of `cluster`, with the quads of the face at every vertex its
 /// boundary passes more than once; ascending. `None` when it exceeds
-/// [`MAX_REGION_QUADS`].
-fn region_around(mesh: &QuadMesh, cluster: &[u32], face: u32, rings: usize) -> Option<Vec<u32>> {
-    let per_vertex = quads_per_vertex(mesh);
+/// [`MAX_REGION_QUADS`]. `per_vertex` is [`quads_per_vertex`] of `mesh`.
+fn region_around(
+    mesh: &QuadMesh,
+    per_vertex: &[Vec<u32>],
+    cluster: &[u32],
+    face: u32,
+    rings: usize,
+) -> Option<Vec<u32>> {
     let mut region: Vec<u32> = cluster.to_vec();
     let of_face = |q: &u32| mesh.model_face_per_quad[*q as usize] == face;
     let grow = |region: &[u32], at: &[u32]| -> Vec<u32> {

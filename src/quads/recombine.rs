@@ -9,7 +9,14 @@
 //!    the pairing becomes a maximum matching of the candidate pairs.
 //! 3. [`super::strip`]: triangles still free are joined in pairs through a
 //!    strip of quads split at the midpoints of the edges it crosses.
-//! 4. [`super::subdivision`]: the faces where triangles remain (odd count,
+//! 4. In a face where triangles stay free after that, the matching is
+//!    completed again over the poor pairs as well (quads convex but with a
+//!    corner flatter than the candidates allow,
+//!    [`super::pairing::MIN_POOR_PAIR_SCALED_JACOBIAN`]), and the strips
+//!    are made again: such a face would otherwise be subdivided whole,
+//!    with every face next to it, at half the size asked for. The later
+//!    steps (smoothing, pillowing) open the flat corners.
+//! 5. [`super::subdivision`]: the faces where triangles remain (odd count,
 //!    or strips that stay invalid), with every face sharing an edge with
 //!    them, are midpoint-subdivided into quads.
 //!
@@ -23,7 +30,7 @@ use serde::Serialize;
 
 use super::error::QuadsError;
 use super::matching::complete_matching;
-use super::pairing::{DualGraph, NONE, greedy_partners};
+use super::pairing::{DualGraph, MIN_PAIR_SCALED_JACOBIAN, MIN_POOR_PAIR_SCALED_JACOBIAN, NONE, greedy_partners};
 use super::strip::{StripStats, join_free_triangles};
 use super::subdivision::{Element, faces_to_subdivide, subdivide};
 use super::surface_mesh::{QuadMesh, SurfaceTriangulation};
@@ -52,6 +59,12 @@ pub struct RecombineStats {
     pub n_unmatched_after_matching: usize,
     /// Free triangles joined in pairs through strips of split quads.
     pub strips: StripStats,
+    /// Model faces whose matching was completed again with the poor pairs
+    /// (module doc, step 4).
+    pub n_faces_with_poor_pairs: usize,
+    /// Poor pairs in the final matching (quads not above the candidates'
+    /// floor).
+    pub n_poor_pairs: usize,
     /// Model faces midpoint-subdivided (the last resort; should be 0).
     pub n_subdivided_faces: usize,
     /// Quads made by subdivision.
@@ -91,9 +104,43 @@ pub fn recombine(tri: SurfaceTriangulation, progress: &Progress) -> Result<(Quad
     progress.check()?;
 
     let t = Instant::now();
-    let completion = complete_matching(&graph, &tri.model_face_per_triangle, &mut partner, &progress.sub(0.2, 0.9))?;
+    let completion =
+        complete_matching(&graph, &tri.model_face_per_triangle, &mut partner, &|_| true, &progress.sub(0.2, 0.9))?;
     stats.n_windows = completion.n_windows;
     stats.n_augmenting_paths = completion.n_augmentations;
+    let n_faces = tri.model_face_per_triangle.iter().map(|&f| f as usize + 1).max().unwrap_or(0);
+    // The strips, tried on a copy of the vertices: a face they leave with
+    // free triangles is completed again with the poor pairs (step 4).
+    let (elements, face_per_element) =
+        matching_elements(&tri.triangles, &tri.model_face_per_triangle, &graph, &partner, |_| true);
+    let mut vertices = tri.vertices.clone();
+    let mut joined = join_free_triangles(&mut vertices, &elements, &face_per_element, &tri.curve_edges);
+    let unpaired = faces_with_triangles(n_faces, &joined.0, &joined.1);
+    let graph = if unpaired.contains(&true) {
+        let floor = |f: u32| {
+            if unpaired[f as usize] { MIN_POOR_PAIR_SCALED_JACOBIAN } else { MIN_PAIR_SCALED_JACOBIAN }
+        };
+        let wide = DualGraph::with_floor(&tri, &floor);
+        let searched = |f: u32| unpaired[f as usize];
+        let poor =
+            complete_matching(&wide, &tri.model_face_per_triangle, &mut partner, &searched, &progress.sub(0.9, 0.95))?;
+        stats.n_windows += poor.n_windows;
+        stats.n_augmenting_paths += poor.n_augmentations;
+        stats.n_faces_with_poor_pairs = unpaired.iter().filter(|&&u| u).count();
+        stats.n_poor_pairs = (0..partner.len() as u32)
+            .filter(|&t| {
+                let u = partner[t as usize];
+                u != NONE && t < u && graph.pair_of(t, u).is_none()
+            })
+            .count();
+        let (elements, face_per_element) =
+            matching_elements(&tri.triangles, &tri.model_face_per_triangle, &wide, &partner, |_| true);
+        vertices = tri.vertices.clone();
+        joined = join_free_triangles(&mut vertices, &elements, &face_per_element, &tri.curve_edges);
+        wide
+    } else {
+        graph
+    };
     stats.n_unmatched_after_matching = partner.iter().filter(|&&p| p == NONE).count();
     stats.n_matching_pairs = (0..partner.len())
         .filter(|&t| partner[t] != NONE && (t as u32) < partner[t] && greedy[t] != partner[t])
@@ -102,9 +149,7 @@ pub fn recombine(tri: SurfaceTriangulation, progress: &Progress) -> Result<(Quad
     progress.check()?;
 
     let t = Instant::now();
-    let n_faces = tri.model_face_per_triangle.iter().map(|&f| f as usize + 1).max().unwrap_or(0);
     let SurfaceTriangulation {
-        mut vertices,
         mut curve_edges,
         singular_vertices,
         seam_vertices,
@@ -112,10 +157,7 @@ pub fn recombine(tri: SurfaceTriangulation, progress: &Progress) -> Result<(Quad
         model_face_per_triangle,
         ..
     } = tri;
-    let (elements, face_per_element) =
-        matching_elements(&triangles, &model_face_per_triangle, &graph, &partner, |_| true);
-    let (elements, face_per_element, strips) =
-        join_free_triangles(&mut vertices, &elements, &face_per_element, &curve_edges);
+    let (elements, face_per_element, strips) = joined;
     stats.strips = strips;
     let failing: Vec<u32> = elements
         .iter()
@@ -158,6 +200,18 @@ pub fn recombine(tri: SurfaceTriangulation, progress: &Progress) -> Result<(Quad
 /// Pairs in `partner`.
 fn n_pairs(partner: &[u32]) -> usize {
     (0..partner.len()).filter(|&t| partner[t] != NONE && (t as u32) < partner[t]).count()
+}
+
+/// Per model face (of `n_faces`): whether one of `elements` (model faces
+/// `faces`) in it is still a triangle.
+fn faces_with_triangles(n_faces: usize, elements: &[Element], faces: &[u32]) -> Vec<bool> {
+    let mut out = vec![false; n_faces];
+    for (e, &f) in elements.iter().zip(faces) {
+        if matches!(e, Element::Triangle(_)) {
+            out[f as usize] = true;
+        }
+    }
+    out
 }
 
 /// The elements of the matching `partner` in the model faces `keep`
@@ -369,8 +423,27 @@ mod tests {
             assert_eq!(stats.n_subdivided_faces, 0, "seed {seed}: {stats:?}");
             assert_eq!(mesh.quads.len(), tri.triangles.len() / 2);
             assert_eq!(stats.n_unmatched_after_matching, 0);
+            assert_eq!((stats.n_faces_with_poor_pairs, stats.n_poor_pairs), (0, 0));
             assert_valid(&mesh);
         }
+    }
+
+    #[test]
+    fn a_face_only_a_nearly_flat_quad_can_pair_takes_it_instead_of_subdivision() {
+        // Two triangles whose quad has a 179.4° corner at vertex 3 (scaled
+        // Jacobian sin 0.6° ≈ 0.01): no candidate pair, no quad for a strip
+        // to cross, so the face used to be midpoint-subdivided into 6 quads.
+        let points = [[0.0, 0.0], [2.0, 0.0], [1.0, 1.0], [1.0, -0.005]];
+        let tri = planar_triangulation(&points, vec![[0, 1, 2], [1, 0, 3]], vec![0; 2]);
+        let p = [3, 1, 2, 0].map(|v: usize| Vec3::new(points[v][0], points[v][1], 0.0));
+        let j = scaled_jacobian(&p, &Vec3::z());
+        assert!(j > MIN_POOR_PAIR_SCALED_JACOBIAN && j <= MIN_PAIR_SCALED_JACOBIAN, "{j}");
+        assert!(DualGraph::new(&tri).pairs.is_empty());
+        let (mesh, stats) = run(&tri);
+        assert_eq!((stats.n_faces_with_poor_pairs, stats.n_poor_pairs, stats.n_subdivided_faces), (1, 1, 0));
+        assert_eq!(stats.n_unmatched_after_matching, 0);
+        assert_eq!(mesh.quads.iter().map(|&q| sorted(q)).collect::<Vec<_>>(), vec![[0, 1, 2, 3]]);
+        assert_valid(&mesh);
     }
 
     #[test]
