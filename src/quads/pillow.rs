@@ -112,7 +112,7 @@ pub struct PillowStats {
 pub fn pillow_bad_quads(mesh: &mut QuadMesh, projector: &SurfaceProjector) -> PillowStats {
     let t = Instant::now();
     let mut bad = bad_quads(mesh, projector);
-    let mut stats = PillowStats { n_bad_before: bad.len(), ..PillowStats::default() };
+    let mut stats = PillowStats { n_bad_before: bad.len(), n_bad_after: bad.len(), ..PillowStats::default() };
     for _ in 0..MAX_ROUNDS {
         if bad.is_empty() {
             break;
@@ -132,12 +132,12 @@ pub fn pillow_bad_quads(mesh: &mut QuadMesh, projector: &SurfaceProjector) -> Pi
         // Later rounds retry the inverted quads only: a valid quad no region
         // raised in this round would cost the same search again.
         bad = bad_quads(mesh, projector);
+        stats.n_bad_after = bad.len();
         bad.retain(|&q| is_inverted(mesh, projector, q));
         if !repaired_any {
             break;
         }
     }
-    stats.n_bad_after = bad_quads(mesh, projector).len();
     stats.seconds = t.elapsed().as_secs_f64();
     stats
 }

@@ -88,7 +88,7 @@ pub struct RecombineStats {
 /// [`QuadsError::CheckFailed`] when `tri`'s arrays disagree in length or
 /// name a vertex that does not exist (a bug of the triangulation step),
 /// [`QuadsError::Cancelled`].
-pub fn recombine(tri: SurfaceTriangulation, progress: &Progress) -> Result<(QuadMesh, RecombineStats), QuadsError> {
+pub fn recombine(mut tri: SurfaceTriangulation, progress: &Progress) -> Result<(QuadMesh, RecombineStats), QuadsError> {
     let start = Instant::now();
     check_input(&tri)?;
     let mut stats = RecombineStats { n_triangles_in: tri.triangles.len(), ..RecombineStats::default() };
@@ -109,14 +109,16 @@ pub fn recombine(tri: SurfaceTriangulation, progress: &Progress) -> Result<(Quad
     stats.n_windows = completion.n_windows;
     stats.n_augmenting_paths = completion.n_augmentations;
     let n_faces = tri.model_face_per_triangle.iter().map(|&f| f as usize + 1).max().unwrap_or(0);
-    // The strips, tried on a copy of the vertices: a face they leave with
-    // free triangles is completed again with the poor pairs (step 4).
+    // The strips: a face they leave with free triangles is completed again
+    // with the poor pairs (step 4), and the strips are made again after
+    // their midpoints (only ever appended) are dropped.
     let (elements, face_per_element) =
         matching_elements(&tri.triangles, &tri.model_face_per_triangle, &graph, &partner, |_| true);
-    let mut vertices = tri.vertices.clone();
-    let mut joined = join_free_triangles(&mut vertices, &elements, &face_per_element, &tri.curve_edges);
+    let n_vertices = tri.vertices.len();
+    let mut joined = join_free_triangles(&mut tri.vertices, &elements, &face_per_element, &tri.curve_edges);
     let unpaired = faces_with_triangles(n_faces, &joined.0, &joined.1);
     let graph = if unpaired.contains(&true) {
+        tri.vertices.truncate(n_vertices);
         let floor = |f: u32| {
             if unpaired[f as usize] { MIN_POOR_PAIR_SCALED_JACOBIAN } else { MIN_PAIR_SCALED_JACOBIAN }
         };
@@ -135,8 +137,7 @@ pub fn recombine(tri: SurfaceTriangulation, progress: &Progress) -> Result<(Quad
             .count();
         let (elements, face_per_element) =
             matching_elements(&tri.triangles, &tri.model_face_per_triangle, &wide, &partner, |_| true);
-        vertices = tri.vertices.clone();
-        joined = join_free_triangles(&mut vertices, &elements, &face_per_element, &tri.curve_edges);
+        joined = join_free_triangles(&mut tri.vertices, &elements, &face_per_element, &tri.curve_edges);
         wide
     } else {
         graph
@@ -150,6 +151,7 @@ pub fn recombine(tri: SurfaceTriangulation, progress: &Progress) -> Result<(Quad
 
     let t = Instant::now();
     let SurfaceTriangulation {
+        mut vertices,
         mut curve_edges,
         singular_vertices,
         seam_vertices,
