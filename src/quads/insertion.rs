@@ -8,6 +8,16 @@
 //! [`EXCLUSION`] × size, aligned with that point's cross, in its tangent
 //! plane), within [`EXCLUSION`] × size of a singular point, or closer than
 //! [`BOUNDARY_CLEARANCE`] × size to the boundary polyline.
+//!
+//! The size is the size map's at the candidate, except for the first row
+//! (the candidates of points on a model curve; a seam is crossed as if it
+//! were not there), which is judged at the smaller of that and the curve
+//! point's size: where the size grows away from a
+//! convex curve (the disk capping a cylinder, whose circle is cut finer
+//! than its inside needs), the inward steps converge while the size
+//! grows, and a first row judged at the larger size loses every other
+//! point; a curve point left with no inward edge then gets a flat quad
+//! corner (165° on a 24-gon).
 
 use std::collections::{HashMap, VecDeque};
 
@@ -163,7 +173,8 @@ impl Front<'_> {
 }
 
 /// Points inside one patch at spacing `size` along `field`: `boundary` are
-/// the patch's boundary points (chart point, spawning), `segments` the
+/// the patch's boundary points (chart point, spawning; `on_curve`: whether
+/// each lies on a model curve rather than a seam), `segments` the
 /// boundary polyline (pairs of indices into `boundary`), `singular` the
 /// points placed at singularities (kept, never spawning). Returns the new
 /// points (not the boundary or singular ones), in placement order.
@@ -177,6 +188,7 @@ pub fn insert_points(
     field: &Crossfield,
     sizes: &SizeMap,
     boundary: &[ChartPoint],
+    on_curve: &[bool],
     segments: &[[usize; 2]],
     singular: &[ChartPoint],
     progress: &Progress,
@@ -195,27 +207,30 @@ pub fn insert_points(
     for &[a, b] in segments {
         front.add_segment(positions[a], positions[b]);
     }
-    let mut queue: VecDeque<(ChartPoint, Vec3)> = VecDeque::new();
-    for (p, x) in boundary.iter().zip(&positions) {
+    // Queued points, with the size of the curve point that spawned them
+    // (the first row) or `None`.
+    let mut queue: VecDeque<(ChartPoint, Vec3, Option<f64>)> = VecDeque::new();
+    for ((p, x), &curve) in boundary.iter().zip(&positions).zip(on_curve) {
         front.add(*x, Some(front.frame(p.tri)));
-        queue.push_back((*p, *x));
+        queue.push_back((*p, *x, curve.then(|| front.size_at(p.tri, x))));
     }
     for p in singular {
         front.add(chart.position(p.tri, &p.bary), None);
     }
     let cap = (4.0 * chart.area() / (size * size)) as usize + 1000;
     let mut out = Vec::new();
-    while let Some((p, x)) = queue.pop_front() {
+    while let Some((p, x, boundary_size)) = queue.pop_front() {
         let [t1, t2, _] = front.frame(p.tri);
         for dir in [t1, t2, -t1, -t2] {
             if dir.norm_squared() == 0.0 {
                 continue;
             }
             let Some((c, y)) = front.candidate(&p, &x, &dir) else { continue };
-            if front.is_free(&y, front.size_at(c.tri, &y)) {
+            let local = front.size_at(c.tri, &y);
+            if front.is_free(&y, boundary_size.map_or(local, |b| b.min(local))) {
                 front.add(y, Some(front.frame(c.tri)));
                 out.push(c);
-                queue.push_back((c, y));
+                queue.push_back((c, y, None));
             }
         }
         if out.len() % 1024 == 1023 {

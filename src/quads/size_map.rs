@@ -57,7 +57,9 @@
 //! its quads' corners to face one way (inverted quads), and 8 keep
 //! neighbouring corners' normals within 45°. The cap is graded
 //! (`h(x) ≤ h(y) + g |x − y|`, `g` = [`SIZE_GRADIENT`]) so the size
-//! changes no faster than a front can follow.
+//! changes no faster than a front can follow; the curves' caps are graded
+//! apart and slower ([`CURVE_SIZE_GRADIENT`]) into the faces they bound,
+//! where a front leaving a convex curve converges.
 
 use nalgebra::Complex;
 
@@ -110,6 +112,13 @@ pub const MIN_SIZE_FRACTION_TURN: f64 = 0.02;
 
 /// Largest growth of the capped size per unit length.
 pub const SIZE_GRADIENT: f64 = 0.5;
+
+/// Largest growth per unit length of the size a curve's turning asks for,
+/// into the faces it bounds: a front leaving a convex curve converges,
+/// and a row that grows as well loses points next to the curve, where a
+/// curve vertex left without an inward edge becomes a flat quad corner
+/// (the caps of a cylinder).
+pub const CURVE_SIZE_GRADIENT: f64 = 0.15;
 
 /// Target edge length per surface vertex.
 #[derive(Debug, Clone)]
@@ -261,30 +270,42 @@ pub fn curvature_bounded_sizes(
     model: &QuadModel,
     size: f64,
 ) -> SizeMap {
-    let turns = turns_per_length(surface, topo, model, size);
+    let (surface_turns, curve_turns) = turns_per_length(surface, topo, model, size);
     let mut h = sizes.size_per_vertex;
-    let mut capped = false;
-    for (hv, &t) in h.iter_mut().zip(&turns) {
-        if t > 0.0 {
-            let cap = 1.0 / t;
-            if cap < *hv {
-                *hv = cap;
-                capped = true;
-            }
-        }
-    }
+    let capped = apply_caps(&mut h, &surface_turns);
     if capped {
-        grade_sizes(surface, topo, &mut h);
+        grade_sizes(surface, topo, &mut h, SIZE_GRADIENT);
+    }
+    let mut along_curves = vec![f64::INFINITY; h.len()];
+    if apply_caps(&mut along_curves, &curve_turns) {
+        grade_sizes(surface, topo, &mut along_curves, CURVE_SIZE_GRADIENT);
+        for (hv, c) in h.iter_mut().zip(along_curves) {
+            *hv = hv.min(c);
+        }
     }
     SizeMap { size_per_vertex: h }
 }
 
+/// Lowers each `h` to `1 / turns` where that is smaller (`turns` 0: no
+/// cap). Returns whether any was lowered.
+fn apply_caps(h: &mut [f64], turns: &[f64]) -> bool {
+    let mut capped = false;
+    for (hv, &t) in h.iter_mut().zip(turns) {
+        if t > 0.0 && 1.0 / t < *hv {
+            *hv = 1.0 / t;
+            capped = true;
+        }
+    }
+    capped
+}
+
 /// Per vertex, the quad edges per unit length its curvature asks for
-/// (`N κ / 2π`, the largest over its non-curve edges and, on a model curve,
-/// the curve's turning, each at most its floor's; module documentation),
-/// for the size `size` asked.
-fn turns_per_length(surface: &TriMesh, topo: &Topology, model: &QuadModel, size: f64) -> Vec<f64> {
+/// (`N κ / 2π`, each at most its floor's; module documentation), for the
+/// size `size` asked: the largest over its non-curve edges (where the
+/// surface bends), and, apart, on a model curve, the curve's turning.
+fn turns_per_length(surface: &TriMesh, topo: &Topology, model: &QuadModel, size: f64) -> (Vec<f64>, Vec<f64>) {
     let mut turns = vec![0.0f64; surface.n_vertices()];
+    let mut curve_turns = vec![0.0f64; surface.n_vertices()];
     let per_radian_surface = SEGMENTS_PER_TURN_SURFACE / std::f64::consts::TAU;
     let per_radian_curve = SEGMENTS_PER_TURN_CURVE / std::f64::consts::TAU;
     let per_radian_small_face = SEGMENTS_PER_TURN_SMALL_FACE / std::f64::consts::TAU;
@@ -329,7 +350,7 @@ fn turns_per_length(surface: &TriMesh, topo: &Topology, model: &QuadModel, size:
             let turn = angle_between(&(q - p), &(r - q));
             let length = 0.5 * ((q - p).norm() + (r - q).norm());
             if turn.to_degrees() <= SHARP_TURN_DEG && length > 0.0 {
-                turns[v.idx()] = turns[v.idx()].max((per_radian_curve * turn / length).min(most_curve));
+                curve_turns[v.idx()] = curve_turns[v.idx()].max((per_radian_curve * turn / length).min(most_curve));
             }
         };
         for w in verts.windows(3) {
@@ -339,7 +360,7 @@ fn turns_per_length(surface: &TriMesh, topo: &Topology, model: &QuadModel, size:
             turn_at(verts[verts.len() - 2], verts[0], verts[1]);
         }
     }
-    turns
+    (turns, curve_turns)
 }
 
 /// Per model face, the fraction of the size `size` its caps may not go
@@ -358,13 +379,13 @@ fn face_floor_fractions(model: &QuadModel, size: f64) -> Vec<f64> {
 }
 
 /// Lowers `h` to `min over y of h(y) + g |x − y|` along the surface edges
-/// (Dijkstra from every vertex at once), `g` = [`SIZE_GRADIENT`].
-fn grade_sizes(surface: &TriMesh, topo: &Topology, h: &mut [f64]) {
+/// (Dijkstra from every vertex at once; infinite sizes are uncapped).
+fn grade_sizes(surface: &TriMesh, topo: &Topology, h: &mut [f64], g: f64) {
     use std::cmp::Reverse;
     use std::collections::BinaryHeap;
     let mut neighbours: Vec<Vec<(u32, f64)>> = vec![Vec::new(); h.len()];
     for [a, b] in &topo.edges {
-        let l = SIZE_GRADIENT * (surface.position(*a) - surface.position(*b)).norm();
+        let l = g * (surface.position(*a) - surface.position(*b)).norm();
         neighbours[a.idx()].push((b.0, l));
         neighbours[b.idx()].push((a.0, l));
     }
@@ -491,7 +512,9 @@ mod tests {
     /// On an open 12-sided prism of radius 1 (facet width `w = 2 sin 15°`,
     /// a 30° fold between facets, the two rims turning 30° per vertex), at a
     /// size far too large: the rims get 24 edges per turn (`h = w/2`), the
-    /// rest 16 per turn of the folds (`h = 12 w / 16`); a plane gets no cap.
+    /// rest 16 per turn of the folds (`h = 12 w / 16`), or less where the
+    /// rims' size, graded at [`CURVE_SIZE_GRADIENT`] along the vertical
+    /// edges, is smaller; a plane gets no cap.
     #[test]
     fn the_curvature_cap_gives_a_prism_24_edges_on_its_rims_and_16_around() {
         let mesh = fixtures::cylinder(1.0, 2.0, 12, 4);
@@ -503,7 +526,8 @@ mod tests {
         let w = 2.0 * 15f64.to_radians().sin();
         for (p, h) in mesh.positions.iter().zip(&map.size_per_vertex) {
             let on_rim = p.z.abs() < 1e-12 || (p.z - 2.0).abs() < 1e-12;
-            let expected = if on_rim { w / 2.0 } else { 12.0 * w / 16.0 };
+            let from_rim = w / 2.0 + CURVE_SIZE_GRADIENT * p.z.min(2.0 - p.z);
+            let expected = if on_rim { w / 2.0 } else { from_rim.min(12.0 * w / 16.0) };
             assert!((h - expected).abs() < 1e-9, "z = {}: h = {h}, expected {expected}", p.z);
         }
         let plane = fixtures::square(4);

@@ -325,7 +325,10 @@ fn triangulate_patch(
             indices.push((s.index * f64::from(field.symmetry)).round() as i32);
         }
     }
-    let inner = insert_points(&chart, surface, field, sizes, &points, &segments, &singular, progress)?;
+    // Points of a model curve (not of a seam, which the mesh crosses).
+    let on_curve: Vec<bool> =
+        ids.iter().map(|&g| !matches!(boundary.vertices.entity[g as usize], ModelEntity::Face(_))).collect();
+    let inner = insert_points(&chart, surface, field, sizes, &points, &on_curve, &segments, &singular, progress)?;
     let nb = points.len();
     let n_singular = singular.len();
     points.extend(singular);
@@ -880,6 +883,35 @@ mod tests {
         for (i, patch) in s.atlas.patches.iter().enumerate() {
             assert!(boundary_crossings(&patch_boundary(&s.atlas, &all, patch, i).expect("boundary")).is_empty());
         }
+    }
+
+    /// A unit disk whose circle (24 segments, what its turning asks for)
+    /// is cut finer than the size asked: the size grows inward, and the
+    /// first row of points must still keep one point inside every boundary
+    /// point's step, or the circle points left without an inward edge
+    /// become flat quad corners (165°). Judged at the size inside, and with
+    /// the circle's size graded as fast as the surface's, the row kept 4 of
+    /// 24 points; now at least three quarters stay (19: the rows still
+    /// merge where the cross turns 45° off the circle's normal).
+    #[test]
+    fn a_circle_cut_finer_than_the_inside_keeps_its_first_row() {
+        let s = setup(fixtures::disk(4));
+        let (tri, _) = run(&s, 1.0);
+        check(&s, &tri);
+        let radius = |v: usize| tri.vertices.positions[v].norm();
+        let on_circle: Vec<usize> =
+            (0..tri.vertices.len()).filter(|&v| !matches!(tri.vertices.entity[v], ModelEntity::Face(_))).collect();
+        let segment = std::f64::consts::TAU / on_circle.len() as f64;
+        let first_row = (0..tri.vertices.len())
+            .filter(|&v| matches!(tri.vertices.entity[v], ModelEntity::Face(_)))
+            .filter(|&v| 1.0 - radius(v) < 1.5 * segment)
+            .count();
+        assert!(on_circle.len() >= 20, "{} points on the circle", on_circle.len());
+        assert!(
+            4 * first_row >= 3 * on_circle.len(),
+            "{first_row} points within 1.5 segments of a circle of {} points",
+            on_circle.len()
+        );
     }
 
     #[test]
