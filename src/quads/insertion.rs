@@ -12,12 +12,11 @@
 //! The size is the size map's at the candidate, except for the first row
 //! (the candidates of points on a model curve; a seam is crossed as if it
 //! were not there), which is judged at the smaller of that and the curve
-//! point's size: where the size grows away from a
-//! convex curve (the disk capping a cylinder, whose circle is cut finer
-//! than its inside needs), the inward steps converge while the size
-//! grows, and a first row judged at the larger size loses every other
-//! point; a curve point left with no inward edge then gets a flat quad
-//! corner (165° on a 24-gon).
+//! point's size: where the size grows away from a convex curve (the disk
+//! capping a cylinder, whose circle is cut finer than its inside needs),
+//! the inward steps converge while the size grows, and a first row judged
+//! at the larger size loses every other point; a curve point left with no
+//! inward edge then gets a flat quad corner (165° on a 24-gon).
 
 use std::collections::{HashMap, VecDeque};
 
@@ -219,7 +218,7 @@ pub fn insert_points(
     }
     let cap = (4.0 * chart.area() / (size * size)) as usize + 1000;
     let mut out = Vec::new();
-    while let Some((p, x, boundary_size)) = queue.pop_front() {
+    while let Some((p, x, curve_size)) = queue.pop_front() {
         let [t1, t2, _] = front.frame(p.tri);
         for dir in [t1, t2, -t1, -t2] {
             if dir.norm_squared() == 0.0 {
@@ -227,7 +226,7 @@ pub fn insert_points(
             }
             let Some((c, y)) = front.candidate(&p, &x, &dir) else { continue };
             let local = front.size_at(c.tri, &y);
-            if front.is_free(&y, boundary_size.map_or(local, |b| b.min(local))) {
+            if front.is_free(&y, curve_size.map_or(local, |b| b.min(local))) {
                 front.add(y, Some(front.frame(c.tri)));
                 out.push(c);
                 queue.push_back((c, y, None));
