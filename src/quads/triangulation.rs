@@ -891,8 +891,9 @@ mod tests {
     /// point's step, or the circle points left without an inward edge
     /// become flat quad corners (165°). Judged at the size inside, and with
     /// the circle's size graded as fast as the surface's, the row kept 4 of
-    /// 24 points; now at least three quarters stay (19: the rows still
-    /// merge where the cross turns 45° off the circle's normal).
+    /// 24 points; now at least three quarters stay (19: where two inward
+    /// steps are not quite radial they land closer than the exclusion, and
+    /// a singular point may take a first-row place).
     #[test]
     fn a_circle_cut_finer_than_the_inside_keeps_its_first_row() {
         let s = setup(fixtures::disk(4));
