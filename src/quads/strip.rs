@@ -3,14 +3,18 @@
 //! size asked for instead of being midpoint-subdivided whole.
 //!
 //! For two free triangles `t₁`, `t₂` of one model face, the shortest path
-//! of elements `t₁, q₁, …, q_k, t₂` across non-curve edges that crosses at
-//! least one quad between opposite edges (breadth first over element,
-//! entry edge and that flag, in element and corner order) is split at the
-//! midpoint of every edge it crosses:
+//! of elements `t₁, q₁, …, q_k, t₂` (`k ≥ 1`) across non-curve edges
+//! (breadth first over element and entry edge, in element and corner
+//! order) is split at the midpoint of every edge it crosses:
 //! - `t₁` and `t₂` gain one midpoint on one edge: each becomes a quad;
-//! - each `qᵢ` gains two midpoints: a hexagon, cut into two quads along the
-//!   long diagonal from one of them, chosen by [`cuts`] so that every
-//!   midpoint ends a cut (a midpoint that ends none stays a flat corner).
+//! - each `qᵢ` gains two midpoints ([`split_crossed_quad`]): crossed
+//!   between opposite edges, it is cut in two between them; crossed
+//!   between adjacent edges (a turn), it becomes three quads around a new
+//!   vertex joined to both midpoints and to the corner opposite the turn.
+//!   Either way each midpoint ends an edge into the quad, so a midpoint
+//!   between two quads of the strip is no flat corner; an end triangle's
+//!   midpoint is one in its quad until relaxing moves it off the edge
+//!   (the quad becomes a kite).
 //!
 //! Every split element keeps its orientation and its neighbours across the
 //! split edges are the path's own elements, so the mesh stays conforming.
@@ -94,12 +98,11 @@ impl<'a> Elements<'a> {
 
     /// The shortest path of elements of `from`'s face from `from` to
     /// another free triangle, across non-curve edges, through quads not
-    /// made by an earlier strip and crossing at least one of them between
-    /// opposite edges (see [`cuts`]), with no element twice; with the edge
-    /// crossed into each element after the first.
+    /// made by an earlier strip, crossing at least one quad, with no element
+    /// twice; with the edge crossed into each element after the first.
     fn path_to_free_triangle(&self, from: usize) -> Option<Vec<(usize, (u32, u32))>> {
         let (_, face) = self.elements[from]?;
-        let start = Step { element: from, entry: NO_ENTRY, straight: false };
+        let start = Step { element: from, entry: NO_ENTRY };
         let mut parent: HashMap<Step, (Step, (u32, u32))> = HashMap::new();
         let mut queue = VecDeque::from([start]);
         while let Some(step) = queue.pop_front() {
@@ -113,7 +116,6 @@ impl<'a> Elements<'a> {
                 if self.curve.contains(&edge) {
                     continue;
                 }
-                let straight = step.straight || (c.len() == 4 && step.entry != NO_ENTRY && (step.entry + 2) % 4 == k);
                 for &n in self.by_edge.get(&edge).into_iter().flatten() {
                     let Some((other, f)) = self.elements[n] else { continue };
                     if n == step.element || f != face || self.frozen.get(n).copied().unwrap_or(false) {
@@ -121,13 +123,13 @@ impl<'a> Elements<'a> {
                     }
                     let oc = other.corners();
                     let entry = (0..oc.len()).find(|&j| key(oc[j], oc[(j + 1) % oc.len()]) == edge).unwrap_or(NO_ENTRY);
-                    let next = Step { element: n, entry, straight };
+                    let next = Step { element: n, entry };
                     if next.element == from || parent.contains_key(&next) {
                         continue;
                     }
                     parent.insert(next, (step, edge));
                     match other {
-                        Element::Triangle(_) if straight => {
+                        Element::Triangle(_) if step.element != from => {
                             let path = unwind(&parent, start, next);
                             let mut seen: Vec<usize> = path.iter().map(|p| p.0).collect();
                             seen.sort_unstable();
@@ -150,12 +152,11 @@ impl<'a> Elements<'a> {
 const NO_ENTRY: usize = usize::MAX;
 
 /// A state of the path search: an element, the corner slot of the edge it
-/// was entered by, and whether a quad was crossed straight on the way.
+/// was entered by.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
 struct Step {
     element: usize,
     entry: usize,
-    straight: bool,
 }
 
 /// The path from `start` to `end` in the search's `parent` links:
@@ -186,36 +187,33 @@ fn insert_midpoint(corners: &[u32], edge: (u32, u32), mid: u32) -> Vec<u32> {
     out
 }
 
-/// The two quads of hexagon `h` along its long diagonal from `through`.
-fn split_hexagon(h: &[u32], through: u32) -> [[u32; 4]; 2] {
-    let j = h.iter().position(|&v| v == through).unwrap_or(0);
-    let q = |s: usize| [h[(j + s) % 6], h[(j + s + 1) % 6], h[(j + s + 2) % 6], h[(j + s + 3) % 6]];
-    [q(0), q(3)]
-}
-
-/// For each quad of a strip (the elements between its two triangles), the
-/// midpoint its hexagon is cut from, so that every midpoint is the end of
-/// a cut (else it stays a flat corner in both elements beside it). Quad
-/// `i` lies between midpoints `i` and `i + 1`; a quad crossed between
-/// opposite edges is cut between its two midpoints and serves both.
-/// `None` when no quad is crossed straight (then some midpoint cannot be
-/// served).
-fn cuts(straight: &[bool]) -> Option<Vec<usize>> {
-    if !straight.iter().any(|&s| s) {
-        return None;
+/// The quads of a strip's quad `h` (a hexagon: its four corners and the
+/// midpoints `m` of the two edges the strip crosses): crossed between
+/// opposite edges, the two quads on either side of the cut between the
+/// midpoints; crossed between adjacent edges (a turn), three quads around a
+/// new vertex at the corners' centroid (appended to `extra`), joined to both
+/// midpoints and to the corner opposite the turn. Either way each midpoint
+/// ends an edge into the quad, so no midpoint is left a flat corner.
+fn split_crossed_quad(
+    vertices: &mut SurfaceVertices,
+    h: &[u32],
+    m: [u32; 2],
+    face: u32,
+    extra: &mut Vec<u32>,
+) -> Vec<[u32; 4]> {
+    let at = |v: u32| h.iter().position(|&w| w == v).unwrap_or(0);
+    let (i, j) = (at(m[0]), at(m[1]));
+    let q = |s: usize| [h[s % 6], h[(s + 1) % 6], h[(s + 2) % 6], h[(s + 3) % 6]];
+    if (i + 3) % 6 == j {
+        return vec![q(i), q(j)];
     }
-    let mut served = vec![false; straight.len() + 1];
-    let mut out = Vec::with_capacity(straight.len());
-    for (i, &s) in straight.iter().enumerate() {
-        let from = if served[i] { i + 1 } else { i };
-        served[from] = true;
-        if s {
-            served[i] = true;
-            served[i + 1] = true;
-        }
-        out.push(from);
-    }
-    served.iter().all(|&s| s).then_some(out)
+    // The turn: `a` the midpoint after which the corner between both comes.
+    let a = if (i + 2) % 6 == j { i } else { j };
+    let corners: Vec<u32> = h.iter().copied().filter(|v| !m.contains(v)).collect();
+    let x = push_mean_vertex(vertices, &corners, ModelEntity::Face(face));
+    extra.push(x);
+    let v = |s: usize| h[(a + s) % 6];
+    vec![[v(0), v(1), v(2), x], [v(2), v(3), v(4), x], [v(4), v(5), v(0), x]]
 }
 
 /// Unit normal of the polygon `corners` (Newell's formula), `+z` if degenerate.
@@ -394,31 +392,24 @@ fn relax_midpoints(work: &Elements, vertices: &mut SurfaceVertices, mids: &[u32]
 }
 
 /// What splitting a strip made: the new elements, each with the normal of
-/// the element it came from, and the midpoints.
+/// the element it came from, and the midpoints (with the vertices of the
+/// turns' splits, to be relaxed alike).
 type SplitStrip = (Vec<(usize, Vec3)>, Vec<u32>);
 
-/// Splits the elements of `path` (a free triangle, quads, a free triangle)
-/// at the midpoints of the edges it crosses, when [`cuts`] can serve every
-/// midpoint. Returns the new elements, each with the normal of the element
-/// it came from, and the midpoints.
+/// Splits the elements of `path` (a free triangle, at least one quad, a
+/// free triangle) at the midpoints of the edges it crosses. Returns the new
+/// elements, each with the normal of the element it came from, and the new
+/// vertices; `None` for a path without a quad.
 fn split_strip(
     work: &mut Elements,
     vertices: &mut SurfaceVertices,
     path: &[(usize, (u32, u32))],
 ) -> Option<SplitStrip> {
-    let inner = &path[1..path.len() - 1];
-    let straight: Vec<bool> = inner
-        .iter()
-        .enumerate()
-        .map(|(i, &(e, entry))| {
-            let c = work.elements[e].map_or(Vec::new(), |(el, _)| el.corners().to_vec());
-            let at = |edge: (u32, u32)| (0..c.len()).find(|&k| key(c[k], c[(k + 1) % c.len()]) == edge);
-            matches!((at(entry), at(path[i + 2].1)), (Some(a), Some(b)) if (a + 2) % 4 == b)
-        })
-        .collect();
-    let cut_from = cuts(&straight)?;
+    if path.len() < 3 {
+        return None;
+    }
     let face = work.elements[path[0].0].map_or(0, |(_, f)| f);
-    let mids: Vec<u32> =
+    let mut mids: Vec<u32> =
         path[1..].iter().map(|&(_, (a, b))| push_mean_vertex(vertices, &[a, b], ModelEntity::Face(face))).collect();
     let mut made = Vec::new();
     for (i, &(e, _)) in path.iter().enumerate() {
@@ -432,12 +423,13 @@ fn split_strip(
             corners = insert_midpoint(&corners, path[i + 1].1, mids[i]);
         }
         work.remove(e);
-        if corners.len() == 6 {
-            for q in split_hexagon(&corners, mids[cut_from[i - 1]]) {
-                made.push((work.add(Element::Quad(q), face), normal));
-            }
+        let quads = if corners.len() == 6 {
+            split_crossed_quad(vertices, &corners, [mids[i - 1], mids[i]], face, &mut mids)
         } else {
-            made.push((work.add(Element::Quad([corners[0], corners[1], corners[2], corners[3]]), face), normal));
+            vec![[corners[0], corners[1], corners[2], corners[3]]]
+        };
+        for q in quads {
+            made.push((work.add(Element::Quad(q), face), normal));
         }
         for &(m, _) in &made {
             work.frozen[m] = true;
@@ -526,13 +518,28 @@ mod tests {
     }
 
     #[test]
-    fn every_midpoint_of_a_strip_is_served_by_a_cut_when_one_quad_is_crossed_straight() {
-        assert_eq!(cuts(&[]), None, "two adjacent triangles: their midpoint stays flat");
-        assert_eq!(cuts(&[false, false]), None);
-        assert_eq!(cuts(&[true]), Some(vec![0]));
-        // Quads between midpoints (0, 1), (1, 2), (2, 3): the straight one
-        // serves 1 and 2, the last serves 3.
-        assert_eq!(cuts(&[false, true, false]), Some(vec![0, 1, 3]));
-        assert_eq!(cuts(&[false, false, true]), Some(vec![0, 1, 2]));
+    fn a_strip_that_turns_in_a_quad_splits_it_into_three_around_a_new_vertex() {
+        // The unit square with a free triangle on its left edge (apex
+        // (−1, ½)) and one on its top edge (apex (½, 2)): the strip enters
+        // and leaves the square by adjacent edges.
+        let mut v = SurfaceVertices::default();
+        let s = SurfacePoint { face: FaceId(0), bary: [1.0, 0.0, 0.0] };
+        for (x, y) in [(0.0, 0.0), (1.0, 0.0), (1.0, 1.0), (0.0, 1.0), (-1.0, 0.5), (0.5, 2.0)] {
+            v.push(Vec3::new(x, y, 0.0), s, ModelEntity::Face(0));
+        }
+        let elements = vec![Element::Triangle([4, 0, 3]), Element::Quad([0, 1, 2, 3]), Element::Triangle([3, 2, 5])];
+        let (out, _, stats) = join_free_triangles(&mut v, &elements, &[0, 0, 0], &[]);
+        assert_eq!(stats, StripStats { n_pairs_joined: 1, n_quads_split: 1, n_strips_undone: 0 });
+        // Two end quads, three in the square; two midpoints and the new vertex.
+        assert_eq!(out.len(), 5, "{out:?}");
+        assert_eq!(v.len(), 9);
+        let mut total = 0.0;
+        for e in &out {
+            let Element::Quad(q) = e else { panic!("a triangle is left: {out:?}") };
+            let sj = scaled_jacobian(&q.map(|w| v.positions[w as usize]), &Vec3::z());
+            assert!(sj > MIN_SCALED_JACOBIAN, "quad {q:?} scaled Jacobian {sj}");
+            total += area(q, &v.positions);
+        }
+        assert!((total - 2.0).abs() < 1e-12, "area {total}");
     }
 }
