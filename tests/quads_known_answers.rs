@@ -252,3 +252,34 @@ fn terrain_has_at_most_4_irregular_vertices_and_no_subdivision() {
     assert_eq!(r.recombination.n_subdivided_faces, 0);
     assert!(min_planar_scaled_jacobian(&result) > 0.0);
 }
+
+/// The plate `[0, 2] × [0, 1]` folded along `y = 1/2` by
+/// `z = 2 (1 − x)₊ |y − 1/2|` ([`fixtures::folded_plate`]): a 127° crease
+/// at `x = 0` that fades out inside the one model face (at the default
+/// 40°, it is a feature edge while `x < 0.82`; 88° on average, above the
+/// atlas' 70° for cutting along it, and 16 mean edges long). No quad may fold over it: the
+/// quads must follow a crease that bounds nothing as they follow a curve
+/// between two faces (before the atlas cut along such creases, 11 quads
+/// straddled it).
+#[test]
+fn a_crease_that_fades_out_inside_a_face_is_followed_by_quad_edges() {
+    let mesh = fixtures::folded_plate(32);
+    let (result, _) = quads_of(&mesh, &QuadsOptions { size: Some(0.1), ..Default::default() });
+    let p = &result.mesh.vertices.positions;
+    let straddling: Vec<[u32; 4]> = result
+        .mesh
+        .quads
+        .iter()
+        .filter(|q| {
+            let side = q.map(|v| p[v as usize].y - 0.5);
+            let centre_x = q.iter().map(|&v| p[v as usize].x).sum::<f64>() / 4.0;
+            let tol = 1e-3;
+            centre_x < 0.5 && side.iter().any(|&s| s > tol) && side.iter().any(|&s| s < -tol)
+        })
+        .copied()
+        .collect();
+    assert!(straddling.is_empty(), "{} quads fold over the crease: {straddling:?}", straddling.len());
+    assert_eq!(result.report.recombination.n_subdivided_faces, 0);
+    let sj = result.report.scaled_jacobian_min;
+    assert!(sj > 0.3, "min scaled Jacobian {sj}");
+}

@@ -10,9 +10,10 @@
 //! a broken map is never returned. Results are ordered by their smallest
 //! input triangle, so the output does not depend on the thread count.
 
+use super::creases::cut_along_inner_creases;
 use super::curvature::{Curvature, principal_curvatures};
 use super::error::AtlasError;
-use super::features::{FeatureCurve, Features, detect_features, edge_chains, model_faces};
+use super::features::{FeatureCurve, Features, detect_features, edge_chains_with_corners, model_faces};
 use super::mvc::{MvcSolver, PatchParameterization, mean_value_parameterization, mean_value_parameterization_unless};
 use super::options::AtlasOptions;
 use super::partition::{parts_for_distortion, parts_for_size, split_patch, split_patch_into};
@@ -82,6 +83,20 @@ pub struct Atlas {
     pub report: AtlasReport,
 }
 
+impl Atlas {
+    /// The patch of each of the input's `n_input_faces` triangles (all the
+    /// atlas triangles cut from one input triangle lie in one patch).
+    pub fn patch_per_input_face(&self, n_input_faces: usize) -> Vec<u32> {
+        let mut out = vec![u32::MAX; n_input_faces];
+        for (s, &p) in self.source_face.iter().zip(&self.patch_per_face) {
+            if let Some(slot) = out.get_mut(s.idx()) {
+                *slot = p;
+            }
+        }
+        out
+    }
+}
+
 /// A patch that has been parameterized, in local numbering.
 struct DonePatch {
     input_faces: Vec<FaceId>,
@@ -112,19 +127,22 @@ pub fn build_atlas(mesh: &TriMesh, opts: &AtlasOptions, progress: &Progress) -> 
     }
     let t0 = Instant::now();
     let topo = Topology::new(mesh);
-    let ((features, faces_of_model_face), summary) = rayon::join(
+    let ((features, (faces_of_model_face, n_model_faces, n_crease_cuts)), summary) = rayon::join(
         || {
-            let features = detect_features(mesh, &topo, opts.feature_angle_deg);
+            let mut features = detect_features(mesh, &topo, opts.feature_angle_deg);
             let faces = model_faces(&topo, &features).faces_per_component();
-            (features, faces)
+            let n_faces = faces.len();
+            let cut = cut_along_inner_creases(mesh, &topo, &features, faces);
+            features.is_cut_crease = cut.is_cut_crease;
+            (features, (cut.pieces, n_faces, cut.n_faces_cut))
         },
         || topology_summary(mesh, &topo),
     );
     // Without a non-manifold vertex in the input, a patch can only be
     // pinched at its boundary ([`PatchMesh::defect_of_manifold_piece`]).
     let manifold_input = summary.n_nonmanifold_vertices == 0;
-    let feature_pairs = feature_vertex_pairs(&topo, &features);
-    let n_model_faces = faces_of_model_face.len();
+    let feature_pairs = feature_vertex_pairs(&topo, &features.is_feature_edge);
+    let cut_pairs = feature_vertex_pairs(&topo, &features.is_cut_crease);
     let t_features = t0.elapsed().as_secs_f64();
     progress.set(0.05);
 
@@ -137,7 +155,8 @@ pub fn build_atlas(mesh: &TriMesh, opts: &AtlasOptions, progress: &Progress) -> 
         || parameterize_patches(mesh, &topo, faces_of_model_face, manifold_input, opts, progress),
         || principal_curvatures(mesh, &topo),
     );
-    let (mut done, splits) = patches?;
+    let (mut done, mut splits) = patches?;
+    splits.inner_crease = n_crease_cuts;
     drop(topo);
     done.sort_by_key(|p| p.input_faces.iter().min().copied());
     let t_patches = t1.elapsed().as_secs_f64();
@@ -146,7 +165,7 @@ pub fn build_atlas(mesh: &TriMesh, opts: &AtlasOptions, progress: &Progress) -> 
     let refined = done.iter().any(|p| p.report.n_bisections > 0);
     let mut atlas = assemble(mesh, done, features);
     let atlas_topo = Topology::new(&atlas.mesh);
-    attach_curves(&mut atlas, &atlas_topo, &feature_pairs);
+    attach_curves(&mut atlas, &atlas_topo, &feature_pairs, &cut_pairs);
     progress.check()?;
     atlas.curvature = if refined { principal_curvatures(&atlas.mesh, &atlas_topo) } else { input_curvature };
     let t_curves = t2.elapsed().as_secs_f64();
@@ -533,11 +552,12 @@ fn assemble(mesh: &TriMesh, done: Vec<DonePatch>, features: Features) -> Atlas {
 
 /// Compute the BREP curves (chains of edges where patches meet or the mesh
 /// ends) and give every patch its bounding curves with orientation.
-/// The feature edges of the input as `(lo, hi)` vertex pairs, sorted: what
-/// [`attach_curves`] needs of the input topology.
-fn feature_vertex_pairs(topo: &Topology, features: &Features) -> Vec<(VertexId, VertexId)> {
+/// The edges of the input `flagged` (indexed by edge; shorter means
+/// unflagged) as `(lo, hi)` vertex pairs, sorted: what [`attach_curves`]
+/// needs of the input topology.
+fn feature_vertex_pairs(topo: &Topology, flagged: &[bool]) -> Vec<(VertexId, VertexId)> {
     let mut pairs: Vec<(VertexId, VertexId)> = (0..topo.n_edges())
-        .filter(|&e| features.is_feature_edge[e])
+        .filter(|&e| flagged.get(e).copied().unwrap_or(false))
         .map(|e| {
             let [a, b] = topo.edges[e];
             (a.min(b), a.max(b))
@@ -547,14 +567,34 @@ fn feature_vertex_pairs(topo: &Topology, features: &Features) -> Vec<(VertexId, 
     pairs
 }
 
-fn attach_curves(atlas: &mut Atlas, topo: &Topology, feature_pairs: &[(VertexId, VertexId)]) {
+fn attach_curves(
+    atlas: &mut Atlas,
+    topo: &Topology,
+    feature_pairs: &[(VertexId, VertexId)],
+    cut_pairs: &[(VertexId, VertexId)],
+) {
     let is_border: Vec<bool> = (0..topo.n_edges())
         .map(|e| match topo.edge_faces(EdgeId::new(e)) {
             [a, b] => atlas.patch_per_face[a.idx()] != atlas.patch_per_face[b.idx()],
             _ => true,
         })
         .collect();
-    let (corners, chains, _) = edge_chains(topo, &is_border);
+    // A border that runs along a cut crease on one side of a vertex and not
+    // on the other (where the crease ends inside its face) is split there,
+    // so a curve is all crease or not at all.
+    let is_cut_crease = |e: usize| {
+        let [a, b] = topo.edges[e];
+        cut_pairs.binary_search(&(a.min(b), a.max(b))).is_ok()
+    };
+    let mut kinds = vec![0u8; topo.n_vertices()];
+    for e in (0..topo.n_edges()).filter(|&e| is_border[e]) {
+        let kind = if is_cut_crease(e) { 1 } else { 2 };
+        for v in topo.edges[e] {
+            kinds[v.idx()] |= kind;
+        }
+    }
+    let forced: Vec<bool> = kinds.iter().map(|&k| k == 3).collect();
+    let (corners, chains, _) = edge_chains_with_corners(topo, &is_border, &forced);
     let mut curves = Vec::with_capacity(chains.len());
     for (c, chain) in chains.into_iter().enumerate() {
         let e0 = chain.edges[0];

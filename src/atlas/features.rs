@@ -48,6 +48,9 @@ pub struct Features {
     pub curves: Vec<FeatureCurve>,
     /// Per edge: the curve it belongs to (`u32::MAX` for non-feature edges).
     pub curve_per_edge: Vec<u32>,
+    /// Per edge: a crease inside a model face that the atlas cut its
+    /// patches along ([`super::creases`]); empty before the atlas sets it.
+    pub is_cut_crease: Vec<bool>,
 }
 
 /// Detect feature edges, corners and curves of `mesh`.
@@ -82,6 +85,7 @@ pub fn detect_features(mesh: &TriMesh, topo: &Topology, feature_angle_deg: f64) 
         corners,
         curves,
         curve_per_edge,
+        is_cut_crease: Vec::new(),
     }
 }
 

@@ -2,12 +2,13 @@
 //! patches, one-to-one mean value parameterization of each patch.
 //!
 //! [`build_atlas`] runs the stage; the modules are its steps: [`features`]
-//! (§4.1), [`curvature`] (Rusinkiewicz 2004), [`patch`] and [`partition`]
+//! (§4.1), [`creases`] (model faces cut along the creases inside them), [`curvature`] (Rusinkiewicz 2004), [`patch`] and [`partition`]
 //! (§4.2, disk topology and METIS bisection), [`refine`] (§5.1 longest-edge
 //! bisection), [`mvc`] (§3.3–3.4 mean value coordinates), [`verify`] (§3
 //! injectivity, §2 σ2/σ1).
 
 pub mod build;
+pub mod creases;
 pub mod curvature;
 pub mod error;
 pub mod features;

@@ -69,6 +69,9 @@ pub struct SplitCounts {
     pub map_failed: usize,
     /// The map's area distortion exceeded `max_area_distortion`.
     pub distortion: usize,
+    /// Model faces cut along a crease that has the face on both sides
+    /// ([`super::creases`]).
+    pub inner_crease: usize,
 }
 
 /// Why one patch was split.

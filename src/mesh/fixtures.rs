@@ -225,6 +225,20 @@ pub fn cube(n: usize) -> TriMesh {
     TriMesh::from_raw(positions, &tris)
 }
 
+/// The plate `[0, 2] × [0, 1]` (`n` cells across, `n` along, in the
+/// pattern of [`square`]; `n` even) folded along `y = ½` by
+/// `z = 2 (1 − x)₊ |y − ½|`: a crease of 127° between normals at `x = 0`
+/// that fades out inside the plate (it is sharper than 40° while
+/// `2 atan(2 (1 − x)) > 40°`, i.e. for `x < 0.82`).
+pub fn folded_plate(n: usize) -> TriMesh {
+    let mut mesh = square(n);
+    for p in &mut mesh.positions {
+        let x = 2.0 * p.x;
+        *p = Vec3::new(x, p.y, 2.0 * (1.0 - x).max(0.0) * (p.y - 0.5).abs());
+    }
+    mesh
+}
+
 /// Open cylinder of radius `radius` and height `height` around `z`,
 /// `n_around` vertices per ring and `n_height` layers, normals outward.
 pub fn cylinder(radius: f64, height: f64, n_around: usize, n_height: usize) -> TriMesh {

@@ -3,12 +3,14 @@
 //! seams the atlas cut to get disks are not part of it: the mesh crosses
 //! them.
 //!
-//! Only the feature curves that separate two model faces (or lie on the
-//! boundary, or on a non-manifold edge) are kept. A crease that fades out
-//! inside a face (fandisk's) or a closed crease that does not disconnect it
-//! has the same model face on both sides: it bounds nothing, the atlas has
-//! no reason to cut along it (its patches are cut from model faces), so no
-//! atlas curve carries it, and the quads cross it like a seam.
+//! Only the feature curves that separate two model faces, lie on the
+//! boundary or on a non-manifold edge, or that the atlas cut its patches
+//! along ([`Features::is_cut_crease`], [`crate::atlas::creases`]) are
+//! kept. A cut crease has the same model face on both sides (it is
+//! two-sided for the parity) and the quads follow it. A crease the atlas
+//! did not cut along (too blunt, or a model built without an atlas)
+//! bounds nothing: no atlas curve carries it, and the quads cross it like
+//! a seam.
 //!
 //! A curve is also split where a chord would cut a visible part of a
 //! face: a vertex whose triangle with its two curve neighbours (the area a
@@ -60,8 +62,9 @@ impl QuadModel {
 }
 
 /// The feature model of a surface with feature edges `features` (as the
-/// atlas detected them), keeping the separating curves only (module
-/// documentation), split at the vertices a chord would cut off.
+/// atlas detected them), keeping the separating curves and the cut
+/// creases only (module documentation), split at the vertices a chord
+/// would cut off.
 pub fn quad_model(surface: &TriMesh, topo: &Topology, features: &Features) -> QuadModel {
     let faces = model_faces(topo, features);
     let face_area = face_areas(surface, &faces.component_per_face, faces.n_components);
@@ -92,9 +95,10 @@ pub fn quad_model(surface: &TriMesh, topo: &Topology, features: &Features) -> Qu
 }
 
 /// The features of `features` without the edges whose two triangles lie in
-/// the same model face (`face_per_triangle`, areas `face_area`), curves and corners rebuilt
-/// with a corner at every pinned vertex ([`pinned_vertices`]). Dropping the
-/// edges leaves the model faces unchanged: they separate nothing.
+/// the same model face (`face_per_triangle`, areas `face_area`) and that
+/// the atlas did not cut along, curves and corners rebuilt with a corner at
+/// every pinned vertex ([`pinned_vertices`]). Dropping the edges leaves the
+/// model faces unchanged: they separate nothing.
 fn separating_features(
     surface: &TriMesh,
     topo: &Topology,
@@ -103,7 +107,10 @@ fn separating_features(
     face_area: &[f64],
 ) -> Features {
     let separates = |e: usize| match topo.edge_faces(EdgeId::new(e)) {
-        [f, g] => face_per_triangle[f.idx()] != face_per_triangle[g.idx()],
+        [f, g] => {
+            face_per_triangle[f.idx()] != face_per_triangle[g.idx()]
+                || features.is_cut_crease.get(e).copied().unwrap_or(false)
+        }
         _ => true,
     };
     let is_feature_edge: Vec<bool> =
