@@ -240,7 +240,10 @@ fn repair_cluster(mesh: &mut QuadMesh, projector: &SurfaceProjector, cluster: &[
 /// The quads of model face `face` within `rings` rings (through shared
 /// vertices) of `cluster`, with the quads of the face at every vertex its
 /// boundary passes more than once; ascending. `None` when it exceeds
-/// [`MAX_REGION_QUADS`]. `per_vertex` is [`quads_per_vertex`] of `mesh`.
+/// [`MAX_REGION_QUADS`], or when it spans a curve with the face on both
+/// sides (a cut crease): pillowing rewrites the region's quads on copies
+/// of its boundary vertices, which would take a crease edge inside it off
+/// its curve. `per_vertex` is [`quads_per_vertex`] of `mesh`.
 fn region_around(
     mesh: &QuadMesh,
     per_vertex: &[Vec<u32>],
@@ -270,7 +273,21 @@ fn region_around(
         }
         region = grow(&region, &pinches);
     }
-    (region.len() <= MAX_REGION_QUADS && pinched_vertices(mesh, &region).is_empty()).then_some(region)
+    let fits = region.len() <= MAX_REGION_QUADS && pinched_vertices(mesh, &region).is_empty();
+    (fits && !spans_a_curve(mesh, &region)).then_some(region)
+}
+
+/// True when a curve edge of `mesh` is used by two quads of `region`.
+fn spans_a_curve(mesh: &QuadMesh, region: &[u32]) -> bool {
+    let mut uses: BTreeMap<[u32; 2], u32> = BTreeMap::new();
+    for &q in region {
+        let quad = mesh.quads[q as usize];
+        for k in 0..4 {
+            let (a, b) = (quad[k], quad[(k + 1) % 4]);
+            *uses.entry([a.min(b), a.max(b)]).or_default() += 1;
+        }
+    }
+    mesh.curve_edges.iter().any(|&(_, [a, b])| uses.get(&[a.min(b), a.max(b)]) == Some(&2))
 }
 
 /// Edges used by exactly one quad of `region`, each as its quad runs it
@@ -647,5 +664,22 @@ mod tests {
         let stats = pillow_bad_quads(&mut mesh, &proj);
         assert_eq!((stats.n_bad_before, stats.n_regions), (0, 0));
         assert_eq!((mesh.quads.clone(), mesh.vertices.positions.clone()), before);
+    }
+
+    #[test]
+    fn a_region_across_a_curve_with_its_face_on_both_sides_is_not_pillowed() {
+        let input = Input::new(fixtures::square(4));
+        let mut mesh = square_grid(&input, 6);
+        // The edge from grid vertex (3, 2) to (3, 3) becomes a crease of
+        // face 0: both its quads are in face 0.
+        let (a, b) = (2 * 7 + 3, 3 * 7 + 3);
+        let beside: Vec<u32> = (0..mesh.quads.len() as u32)
+            .filter(|&q| [a, b].iter().all(|v| mesh.quads[q as usize].contains(v)))
+            .collect();
+        assert_eq!(beside.len(), 2);
+        mesh.curve_edges.push((0, [a, b]));
+        let per_vertex = quads_per_vertex(&mesh);
+        assert_eq!(region_around(&mesh, &per_vertex, &beside[..1], 0, 0), Some(beside[..1].to_vec()));
+        assert_eq!(region_around(&mesh, &per_vertex, &beside[..1], 0, 1), None);
     }
 }
