@@ -295,5 +295,10 @@ fn cylinder_coarse_has_no_quad_under_0_3() {
     let (result, _) = quads_of(&mesh, &QuadsOptions::default());
     let r = &result.report;
     assert_eq!(r.recombination.n_subdivided_faces, 0);
-    assert!(r.scaled_jacobian_min >= 0.3, "min scaled Jacobian {} ({} under 0.3)", r.scaled_jacobian_min, r.n_below_0_3);
+    assert!(
+        r.scaled_jacobian_min >= 0.3,
+        "min scaled Jacobian {} ({} under 0.3)",
+        r.scaled_jacobian_min,
+        r.n_below_0_3
+    );
 }
