@@ -21,10 +21,15 @@
 //! The midpoints are then relaxed to their neighbours' centroid; a strip
 //! that still has a quad at or below [`MIN_SCALED_JACOBIAN`] is undone and
 //! its triangles look for another route, around the quads it crossed, in
-//! the next round. A face where a triangle still has no partner after
-//! [`STRIP_ROUNDS`] rounds (odd count, or no valid route) has all its
-//! strips undone and is left to subdivision. The midpoints' irregular
-//! vertices are removed later by cavity remeshing.
+//! the next round. From round [`RESCUE_ROUND`] on, such a strip is first
+//! relaxed again from its split with guarded moves ([`Relax::Guarded`]),
+//! and a triangle with no route around closed quads may take one through
+//! them. A kept strip's quads are open to later strips; strips are undone
+//! in reverse order, each restoring the slots it took. A face where a
+//! triangle still has no partner after [`STRIP_ROUNDS`] rounds (odd count,
+//! or no valid route) has all its strips undone and is left to
+//! subdivision. The midpoints' irregular vertices are removed later by
+//! cavity remeshing.
 
 use std::collections::{HashMap, HashSet, VecDeque};
 
@@ -51,9 +56,11 @@ pub struct StripStats {
 /// The elements with an index of their edges.
 struct Elements<'a> {
     elements: Vec<Option<(Element, u32)>>,
-    /// Elements made by a strip (not crossed by later strips, so a strip
-    /// can be undone alone).
+    /// Elements made by a strip of the round (not crossed by the round's
+    /// later strips, so a strip can be undone alone).
     frozen: Vec<bool>,
+    /// Quads an undone strip crossed: its triangles route around them.
+    closed: Vec<bool>,
     by_edge: HashMap<(u32, u32), Vec<usize>>,
     curve: &'a HashSet<(u32, u32)>,
 }
@@ -65,8 +72,13 @@ fn key(a: u32, b: u32) -> (u32, u32) {
 
 impl<'a> Elements<'a> {
     fn new(elements: &[Element], faces: &[u32], curve: &'a HashSet<(u32, u32)>) -> Self {
-        let mut out =
-            Self { elements: Vec::with_capacity(elements.len()), frozen: Vec::new(), by_edge: HashMap::new(), curve };
+        let mut out = Self {
+            elements: Vec::with_capacity(elements.len()),
+            frozen: Vec::new(),
+            closed: Vec::new(),
+            by_edge: HashMap::new(),
+            curve,
+        };
         for (e, &f) in elements.iter().zip(faces) {
             out.add(*e, f);
         }
@@ -77,12 +89,22 @@ impl<'a> Elements<'a> {
     fn add(&mut self, element: Element, face: u32) -> usize {
         let i = self.elements.len();
         self.frozen.push(false);
+        self.closed.push(false);
         let c = element.corners();
         for k in 0..c.len() {
             self.by_edge.entry(key(c[k], c[(k + 1) % c.len()])).or_default().push(i);
         }
         self.elements.push(Some((element, face)));
         i
+    }
+
+    /// Puts `element` of model face `face` back in the empty slot `i`.
+    fn restore(&mut self, i: usize, element: Element, face: u32) {
+        let c = element.corners();
+        for k in 0..c.len() {
+            self.by_edge.entry(key(c[k], c[(k + 1) % c.len()])).or_default().push(i);
+        }
+        self.elements[i] = Some((element, face));
     }
 
     /// Removes element `i`.
@@ -98,9 +120,10 @@ impl<'a> Elements<'a> {
 
     /// The shortest path of elements of `from`'s face from `from` to
     /// another free triangle, across non-curve edges, through quads not
-    /// made by an earlier strip, crossing at least one quad, with no element
-    /// twice; with the edge crossed into each element after the first.
-    fn path_to_free_triangle(&self, from: usize) -> Option<Vec<(usize, (u32, u32))>> {
+    /// made by a strip of the round (nor closed by an undone strip unless
+    /// `reopen`), crossing at least one quad, with no element twice; with
+    /// the edge crossed into each element after the first.
+    fn path_to_free_triangle(&self, from: usize, reopen: bool) -> Option<Vec<(usize, (u32, u32))>> {
         let (_, face) = self.elements[from]?;
         let start = Step { element: from, entry: NO_ENTRY };
         let mut parent: HashMap<Step, (Step, (u32, u32))> = HashMap::new();
@@ -118,7 +141,7 @@ impl<'a> Elements<'a> {
                 }
                 for &n in self.by_edge.get(&edge).into_iter().flatten() {
                     let Some((other, f)) = self.elements[n] else { continue };
-                    if n == step.element || f != face || self.frozen.get(n).copied().unwrap_or(false) {
+                    if n == step.element || f != face || self.frozen[n] || (self.closed[n] && !reopen) {
                         continue;
                     }
                     let oc = other.corners();
@@ -237,7 +260,13 @@ const MIN_SCALED_JACOBIAN: f64 = 0.05;
 /// Rounds of strip joining: a strip left invalid by relaxing is undone and
 /// the quads it crossed are closed to later strips, so its two triangles
 /// look for another route in the next round.
-const STRIP_ROUNDS: usize = 4;
+const STRIP_ROUNDS: usize = 6;
+
+/// The first round whose folded strips are relaxed again under guard
+/// before being undone, and whose triangles may route through closed quads
+/// when there is no way around them. Earlier rounds only reroute: a route
+/// that relaxes freely gives cleanup evener quads than a rescued one.
+const RESCUE_ROUND: usize = 2;
 
 /// Joins the free triangles of `elements` (model faces `faces`) in pairs
 /// (module doc), appending the midpoints to `vertices`. Returns the new
@@ -256,23 +285,47 @@ pub fn join_free_triangles(
     let mut work = Elements::new(elements, faces, &curve);
     let mut stats = StripStats::default();
     let mut kept: Vec<Strip> = Vec::new();
-    let mut mids: Vec<u32> = Vec::new();
-    for _ in 0..STRIP_ROUNDS {
-        let made = strip_round(&mut work, vertices, &mut mids);
+    for round in 0..STRIP_ROUNDS {
+        let made = strip_round(&mut work, vertices, round >= RESCUE_ROUND);
         if made.is_empty() {
             break;
         }
-        relax_midpoints(&work, vertices, &mids);
-        let (valid, invalid): (Vec<Strip>, Vec<Strip>) = made.into_iter().partition(|s| s.is_valid(&work, vertices));
-        kept.extend(valid);
-        if invalid.is_empty() {
-            break;
-        }
+        let strips: Vec<&Strip> = kept.iter().chain(&made).collect();
+        let mids: Vec<u32> = made.iter().flat_map(|s| s.mids.iter().map(|&(m, _)| m)).collect();
+        relax_midpoints(&work, vertices, &mids, &strips, Relax::Free);
+        let (mut valid, invalid): (Vec<Strip>, Vec<Strip>) =
+            made.into_iter().partition(|s| s.is_valid(&work, vertices));
+        // From round `RESCUE_ROUND` on, a strip relaxing folds is relaxed
+        // again from its split, each move kept only when its quads' worst
+        // does not drop; before, it is undone and its triangles look for
+        // another route (which cleanup takes better when there is one).
+        let (invalid, later): (Vec<Strip>, Vec<Strip>) =
+            if round >= RESCUE_ROUND { (invalid, Vec::new()) } else { (Vec::new(), invalid) };
         for strip in &invalid {
-            let restored = strip.undo(&mut work);
+            for &(m, at) in &strip.mids {
+                vertices.positions[m as usize] = at;
+            }
+        }
+        let strips: Vec<&Strip> = kept.iter().chain(&valid).chain(&invalid).collect();
+        let mids: Vec<u32> = invalid.iter().flat_map(|s| s.mids.iter().map(|&(m, _)| m)).collect();
+        relax_midpoints(&work, vertices, &mids, &strips, Relax::Guarded);
+        let (rescued, invalid): (Vec<Strip>, Vec<Strip>) =
+            invalid.into_iter().partition(|s| s.is_valid(&work, vertices));
+        valid.extend(rescued);
+        kept.extend(valid);
+        let invalid: Vec<Strip> = invalid.into_iter().chain(later).collect();
+        // A kept strip's quads are open to later strips (undone in
+        // reverse order, each restores its own slots).
+        for strip in &kept {
+            for &(e, _) in &strip.made {
+                work.frozen[e] = false;
+            }
+        }
+        for strip in invalid.iter().rev() {
+            strip.undo(&mut work);
             // Closed to later strips: the next round routes around them.
-            for &i in &restored[1..restored.len() - 1] {
-                work.frozen[i] = true;
+            for &i in &strip.path[1..strip.path.len() - 1] {
+                work.closed[i] = true;
             }
             stats.n_strips_undone += 1;
         }
@@ -291,7 +344,7 @@ pub fn join_free_triangles(
             refused[strip.face() as usize] = true;
         }
     }
-    for strip in &kept {
+    for strip in kept.iter().rev() {
         if refused[strip.face() as usize] {
             strip.undo(&mut work);
             stats.n_strips_undone += 1;
@@ -307,7 +360,7 @@ pub fn join_free_triangles(
 /// One round: every free triangle that is still free, in element order,
 /// joined with the nearest free triangle a strip can reach; the strips made
 /// (their midpoints appended to `mids`).
-fn strip_round(work: &mut Elements, vertices: &mut SurfaceVertices, mids: &mut Vec<u32>) -> Vec<Strip> {
+fn strip_round(work: &mut Elements, vertices: &mut SurfaceVertices, reopen: bool) -> Vec<Strip> {
     let free: Vec<usize> = (0..work.elements.len())
         .filter(|&i| matches!(work.elements[i], Some((Element::Triangle(_), _))) && !work.frozen[i])
         .collect();
@@ -316,11 +369,14 @@ fn strip_round(work: &mut Elements, vertices: &mut SurfaceVertices, mids: &mut V
         if !matches!(work.elements[t], Some((Element::Triangle(_), _))) {
             continue;
         }
-        let Some(path) = work.path_to_free_triangle(t) else { continue };
+        let path = work.path_to_free_triangle(t, false);
+        let Some(path) = path.or_else(|| if reopen { work.path_to_free_triangle(t, true) } else { None }) else {
+            continue;
+        };
         let originals: Vec<(Element, u32)> = path.iter().filter_map(|&(e, _)| work.elements[e]).collect();
         let Some((new_elements, new_mids)) = split_strip(work, vertices, &path) else { continue };
-        mids.extend(new_mids);
-        made.push(Strip { originals, made: new_elements });
+        let mids = new_mids.into_iter().map(|m| (m, vertices.positions[m as usize])).collect();
+        made.push(Strip { path: path.iter().map(|&(e, _)| e).collect(), originals, made: new_elements, mids });
     }
     made
 }
@@ -328,8 +384,12 @@ fn strip_round(work: &mut Elements, vertices: &mut SurfaceVertices, mids: &mut V
 /// A strip that was split: the elements it replaced and the ones it made
 /// (each with the normal of the element it came from).
 struct Strip {
+    /// The slots of the elements it replaced, in path order.
+    path: Vec<usize>,
     originals: Vec<(Element, u32)>,
     made: Vec<(usize, Vec3)>,
+    /// The vertices it added, with their position when split.
+    mids: Vec<(u32, Vec3)>,
 }
 
 impl Strip {
@@ -349,20 +409,38 @@ impl Strip {
         })
     }
 
-    /// Replaces the strip's elements by the ones it split; returns their new
-    /// indices, in path order.
-    fn undo(&self, work: &mut Elements) -> Vec<usize> {
+    /// Replaces the strip's elements by the ones it split, in their own
+    /// slots (so strips undone in reverse order of making restore a
+    /// consistent mesh even where a later strip split an earlier one's
+    /// quads).
+    fn undo(&self, work: &mut Elements) {
         for (e, _) in &self.made {
             work.remove(*e);
         }
-        self.originals.iter().map(|&(element, face)| work.add(element, face)).collect()
+        for (&i, &(element, face)) in self.path.iter().zip(&self.originals) {
+            work.restore(i, element, face);
+        }
     }
 }
 
-/// Moves each midpoint to the centroid of its edge neighbours,
-/// [`RELAX_SWEEPS`] times in order (positions only: the smoothing step
-/// projects every vertex onto the surface).
-fn relax_midpoints(work: &Elements, vertices: &mut SurfaceVertices, mids: &[u32]) {
+/// How [`relax_midpoints`] takes a move.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+enum Relax {
+    /// Every move to the centroid: the evenest strips, which later cleanup
+    /// and cavity remeshing take best.
+    Free,
+    /// A move kept only when it does not lower the worst scaled Jacobian of
+    /// the strips' quads around the midpoint (each against the normal of
+    /// the element it came from), else tried at half the step. Freely, the
+    /// centroid of a midpoint on a curved, uneven surface can fold a quad
+    /// of its strip (bunny's strips went from valid splits to −0.7).
+    Guarded,
+}
+
+/// Moves each midpoint of `mids` toward the centroid of its edge
+/// neighbours, [`RELAX_SWEEPS`] times in order, as `relax` allows. Positions
+/// only: the smoothing step projects every vertex onto the surface.
+fn relax_midpoints(work: &Elements, vertices: &mut SurfaceVertices, mids: &[u32], strips: &[&Strip], relax: Relax) {
     let wanted: HashSet<u32> = mids.iter().copied().collect();
     let mut around: HashMap<u32, Vec<u32>> = HashMap::new();
     for (element, _) in work.elements.iter().flatten() {
@@ -381,12 +459,40 @@ fn relax_midpoints(work: &Elements, vertices: &mut SurfaceVertices, mids: &[u32]
         list.sort_unstable();
         list.dedup();
     }
+    let mut quads_at: HashMap<u32, Vec<([u32; 4], Vec3)>> = HashMap::new();
+    for strip in strips {
+        for &(e, normal) in &strip.made {
+            if let Some((Element::Quad(q), _)) = work.elements[e] {
+                for v in q.into_iter().filter(|v| wanted.contains(v)) {
+                    quads_at.entry(v).or_default().push((q, normal));
+                }
+            }
+        }
+    }
     for _ in 0..RELAX_SWEEPS {
-        for m in mids {
-            let Some(list) = around.get(m) else { continue };
+        for &m in mids {
+            let Some(list) = around.get(&m) else { continue };
             let p = &vertices.positions;
-            let sum = list.iter().fold(Vec3::zeros(), |acc, &w| acc + p[w as usize]);
-            vertices.positions[*m as usize] = sum / list.len() as f64;
+            let target = list.iter().fold(Vec3::zeros(), |acc, &w| acc + p[w as usize]) / list.len() as f64;
+            let quads = quads_at.get(&m).map_or(&[][..], Vec::as_slice);
+            let worst = |at: Vec3| {
+                quads.iter().fold(f64::INFINITY, |acc, (q, normal)| {
+                    let corners = q.map(|v| if v == m { at } else { p[v as usize] });
+                    acc.min(scaled_jacobian(&corners, normal))
+                })
+            };
+            let here = p[m as usize];
+            let half = (here + target) / 2.0;
+            let to = match relax {
+                Relax::Free => Some(target),
+                Relax::Guarded => {
+                    let before = worst(here);
+                    [target, half].into_iter().find(|&at| worst(at) >= before)
+                }
+            };
+            if let Some(at) = to {
+                vertices.positions[m as usize] = at;
+            }
         }
     }
 }
