@@ -358,8 +358,8 @@ pub fn join_free_triangles(
 }
 
 /// One round: every free triangle that is still free, in element order,
-/// joined with the nearest free triangle a strip can reach; the strips made
-/// (their midpoints appended to `mids`).
+/// joined with the nearest free triangle a strip can reach (through closed
+/// quads when `reopen` and there is no way around them); the strips made.
 fn strip_round(work: &mut Elements, vertices: &mut SurfaceVertices, reopen: bool) -> Vec<Strip> {
     let free: Vec<usize> = (0..work.elements.len())
         .filter(|&i| matches!(work.elements[i], Some((Element::Triangle(_), _))) && !work.frozen[i])
