@@ -90,15 +90,12 @@ impl<'a> Elements<'a> {
         let i = self.elements.len();
         self.frozen.push(false);
         self.closed.push(false);
-        let c = element.corners();
-        for k in 0..c.len() {
-            self.by_edge.entry(key(c[k], c[(k + 1) % c.len()])).or_default().push(i);
-        }
-        self.elements.push(Some((element, face)));
+        self.elements.push(None);
+        self.restore(i, element, face);
         i
     }
 
-    /// Puts `element` of model face `face` back in the empty slot `i`.
+    /// Puts `element` of model face `face` in the empty slot `i`.
     fn restore(&mut self, i: usize, element: Element, face: u32) {
         let c = element.corners();
         for k in 0..c.len() {
@@ -293,27 +290,24 @@ pub fn join_free_triangles(
         let strips: Vec<&Strip> = kept.iter().chain(&made).collect();
         let mids: Vec<u32> = made.iter().flat_map(|s| s.mids.iter().map(|&(m, _)| m)).collect();
         relax_midpoints(&work, vertices, &mids, &strips, Relax::Free);
-        let (mut valid, invalid): (Vec<Strip>, Vec<Strip>) =
+        let (mut valid, mut invalid): (Vec<Strip>, Vec<Strip>) =
             made.into_iter().partition(|s| s.is_valid(&work, vertices));
         // From round `RESCUE_ROUND` on, a strip relaxing folds is relaxed
         // again from its split, each move kept only when its quads' worst
         // does not drop; before, it is undone and its triangles look for
         // another route (which cleanup takes better when there is one).
-        let (invalid, later): (Vec<Strip>, Vec<Strip>) =
-            if round >= RESCUE_ROUND { (invalid, Vec::new()) } else { (Vec::new(), invalid) };
-        for strip in &invalid {
-            for &(m, at) in &strip.mids {
+        if round >= RESCUE_ROUND && !invalid.is_empty() {
+            for &(m, at) in invalid.iter().flat_map(|s| &s.mids) {
                 vertices.positions[m as usize] = at;
             }
+            let strips: Vec<&Strip> = kept.iter().chain(&valid).chain(&invalid).collect();
+            let mids: Vec<u32> = invalid.iter().flat_map(|s| s.mids.iter().map(|&(m, _)| m)).collect();
+            relax_midpoints(&work, vertices, &mids, &strips, Relax::Guarded);
+            let rescued;
+            (rescued, invalid) = invalid.into_iter().partition(|s| s.is_valid(&work, vertices));
+            valid.extend(rescued);
         }
-        let strips: Vec<&Strip> = kept.iter().chain(&valid).chain(&invalid).collect();
-        let mids: Vec<u32> = invalid.iter().flat_map(|s| s.mids.iter().map(|&(m, _)| m)).collect();
-        relax_midpoints(&work, vertices, &mids, &strips, Relax::Guarded);
-        let (rescued, invalid): (Vec<Strip>, Vec<Strip>) =
-            invalid.into_iter().partition(|s| s.is_valid(&work, vertices));
-        valid.extend(rescued);
         kept.extend(valid);
-        let invalid: Vec<Strip> = invalid.into_iter().chain(later).collect();
         // A kept strip's quads are open to later strips (undone in
         // reverse order, each restores its own slots).
         for strip in &kept {
@@ -438,36 +432,29 @@ enum Relax {
 }
 
 /// Moves each midpoint of `mids` toward the centroid of its edge
-/// neighbours, [`RELAX_SWEEPS`] times in order, as `relax` allows. Positions
-/// only: the smoothing step projects every vertex onto the surface.
+/// neighbours in the quads `strips` made, [`RELAX_SWEEPS`] times in order,
+/// as `relax` allows. Positions only: the smoothing step projects every
+/// vertex onto the surface.
 fn relax_midpoints(work: &Elements, vertices: &mut SurfaceVertices, mids: &[u32], strips: &[&Strip], relax: Relax) {
+    // Every element at a midpoint is a quad one of `strips` made (the
+    // elements on both sides of a crossed edge are the strip's own).
     let wanted: HashSet<u32> = mids.iter().copied().collect();
     let mut around: HashMap<u32, Vec<u32>> = HashMap::new();
-    for (element, _) in work.elements.iter().flatten() {
-        let c = element.corners();
-        for k in 0..c.len() {
-            let (a, b) = (c[k], c[(k + 1) % c.len()]);
-            if wanted.contains(&a) {
-                around.entry(a).or_default().push(b);
-            }
-            if wanted.contains(&b) {
-                around.entry(b).or_default().push(a);
+    let mut quads_at: HashMap<u32, Vec<([u32; 4], Vec3)>> = HashMap::new();
+    for strip in strips {
+        for &(e, normal) in &strip.made {
+            let Some((Element::Quad(q), _)) = work.elements[e] else { continue };
+            for k in 0..4 {
+                if wanted.contains(&q[k]) {
+                    around.entry(q[k]).or_default().extend([q[(k + 3) % 4], q[(k + 1) % 4]]);
+                    quads_at.entry(q[k]).or_default().push((q, normal));
+                }
             }
         }
     }
     for list in around.values_mut() {
         list.sort_unstable();
         list.dedup();
-    }
-    let mut quads_at: HashMap<u32, Vec<([u32; 4], Vec3)>> = HashMap::new();
-    for strip in strips {
-        for &(e, normal) in &strip.made {
-            if let Some((Element::Quad(q), _)) = work.elements[e] {
-                for v in q.into_iter().filter(|v| wanted.contains(v)) {
-                    quads_at.entry(v).or_default().push((q, normal));
-                }
-            }
-        }
     }
     for _ in 0..RELAX_SWEEPS {
         for &m in mids {
