@@ -18,7 +18,8 @@
 //!    [`slivers`]: regions of slivers (fans a distorted chart leaves)
 //!    re-triangulated in 3D.
 //! 4. [`recombine`]: triangles paired into quads by alignment and shape,
-//!    completed to a perfect matching, midpoint subdivision as last resort.
+//!    completed to a perfect matching, midpoint subdivision as last resort
+//!    ([`transition`]: of the failing faces alone where it can).
 //! 5. [`cleanup`], [`cavity`] and [`smooth`]: valence-2 vertices and 3-3
 //!    diamonds removed; cavities around irregular vertices replaced by
 //!    patterns with fewer of them; smoothing that never lowers a neighbourhood's worst scaled
@@ -59,6 +60,7 @@ pub mod smooth;
 pub mod strip;
 pub mod subdivision;
 pub mod surface_mesh;
+pub mod transition;
 pub mod triangulation;
 
 pub use error::QuadsError;
@@ -132,38 +134,108 @@ pub fn build_quads(
     let (tri, triangulation) =
         triangulation::surface_triangulation(surface, &topo, atlas, field, &model, size, &progress.sub(0.0, 0.4))?;
     progress.check()?;
-    let (mut mesh, recombination) = recombine::recombine(tri, &progress.sub(0.4, 0.6))?;
-    progress.check()?;
     let projector = projection::SurfaceProjector::new(surface, &topo, &model);
-    let cleanup = cleanup::clean_up(&mut mesh, &projector);
-    let cavities = cavity::remesh_cavities(&mut mesh, &projector);
-    let smoothing = smooth::smooth(&mut mesh, &projector, opts.smoothing_iterations, &progress.sub(0.6, 0.95))?;
-    let pillowing = pillow::pillow_bad_quads(&mut mesh, &projector);
-    let t = Instant::now();
-    if opts.order == 2 {
-        order2::add_high_order_nodes(&mut mesh, &projector);
-    }
-    let high_order_seconds = t.elapsed().as_secs_f64();
-    let t = Instant::now();
-    let quality = quality::quad_quality(&mesh, surface);
-    check::check_quad_mesh(&mesh, &quality, surface, &topo, &model)?;
-    let check_seconds = t.elapsed().as_secs_f64();
+    let input = Input { surface, topo: &topo, model: &model, projector: &projector };
+    let mut narrowest = recombine::SubdivisionScope::Triangles;
+    let mut refused = Vec::new();
+    let finished = loop {
+        let (mesh, mut recombination) = recombine::recombine(tri.clone(), narrowest, &progress.sub(0.4, 0.6))?;
+        progress.check()?;
+        let scope = recombination.subdivision_scope;
+        recombination.scopes_refused.clone_from(&refused);
+        match finish(mesh, recombination, &input, opts, progress) {
+            // A narrow subdivision the later steps left tangled: recombine
+            // again with a wider one (their output passed these checks
+            // before narrow ones existed).
+            Err(QuadsError::CheckFailed { .. })
+                if scope > recombine::SubdivisionScope::None
+                    && scope < recombine::SubdivisionScope::FacesWithNeighbours =>
+            {
+                refused.push(scope);
+                narrowest = if scope == recombine::SubdivisionScope::Triangles {
+                    recombine::SubdivisionScope::Faces
+                } else {
+                    recombine::SubdivisionScope::FacesWithNeighbours
+                };
+            }
+            other => break other?,
+        }
+    };
     let singularity_indices =
         field.singularities.iter().map(|s| (s.index * f64::from(field.symmetry)).round() as i32).collect();
     let report = QuadsReport::new(report::ReportInputs {
         target_size: size,
         order: opts.order,
-        mesh: &mesh,
-        quality: &quality,
+        mesh: &finished.mesh,
+        quality: &finished.quality,
         singularity_indices,
         triangulation,
+        recombination: finished.recombination,
+        cleanup: finished.cleanup,
+        cavities: finished.cavities,
+        smoothing: finished.smoothing,
+        pillowing: finished.pillowing,
+        high_order_seconds: finished.high_order_seconds,
+        check_seconds: finished.check_seconds,
+    });
+    Ok(QuadsResult { mesh: finished.mesh, model, quality: finished.quality, report })
+}
+
+/// The mesh after the steps that follow recombination, and what they did.
+struct Finished {
+    mesh: QuadMesh,
+    recombination: recombine::RecombineStats,
+    cleanup: cleanup::CleanupStats,
+    cavities: cavity::CavityStats,
+    smoothing: smooth::SmoothStats,
+    pillowing: pillow::PillowStats,
+    high_order_seconds: f64,
+    quality: QuadQuality,
+    check_seconds: f64,
+}
+
+/// What the steps after recombination read: the input surface, its
+/// topology and feature model, the projector onto it.
+struct Input<'a> {
+    surface: &'a TriMesh,
+    topo: &'a Topology,
+    model: &'a QuadModel,
+    projector: &'a projection::SurfaceProjector<'a>,
+}
+
+/// Cleanup, cavity remeshing, smoothing, pillowing and the optional
+/// high-order nodes on the recombined `mesh`, then the checks every output
+/// must pass.
+fn finish(
+    mut mesh: QuadMesh,
+    recombination: recombine::RecombineStats,
+    input: &Input,
+    opts: &QuadsOptions,
+    progress: &Progress,
+) -> Result<Finished, QuadsError> {
+    let Input { surface, topo, model, projector } = *input;
+    let cleanup = cleanup::clean_up(&mut mesh, projector);
+    let cavities = cavity::remesh_cavities(&mut mesh, projector);
+    let smoothing = smooth::smooth(&mut mesh, projector, opts.smoothing_iterations, &progress.sub(0.6, 0.95))?;
+    let pillowing = pillow::pillow_bad_quads(&mut mesh, projector);
+    let t = Instant::now();
+    if opts.order == 2 {
+        order2::add_high_order_nodes(&mut mesh, projector);
+    }
+    let high_order_seconds = t.elapsed().as_secs_f64();
+    let t = Instant::now();
+    let quality = quality::quad_quality(&mesh, surface);
+    check::check_quad_mesh(&mesh, &quality, surface, topo, model)?;
+    let check_seconds = t.elapsed().as_secs_f64();
+    Ok(Finished {
+        mesh,
         recombination,
         cleanup,
         cavities,
         smoothing,
         pillowing,
         high_order_seconds,
+        quality,
         check_seconds,
-    });
-    Ok(QuadsResult { mesh, model, quality, report })
+    })
 }

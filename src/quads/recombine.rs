@@ -16,9 +16,12 @@
 //!    are made again: such a face would otherwise be subdivided whole,
 //!    with every face next to it, at half the size asked for. The later
 //!    steps (smoothing, pillowing) open the flat corners.
-//! 5. [`super::subdivision`]: the faces where triangles remain (odd count,
-//!    or strips that stay invalid), with every face sharing an edge with
-//!    them, are midpoint-subdivided into quads.
+//! 5. [`super::transition`]: the triangles that remain (odd count, or no
+//!    valid strip) are midpoint-subdivided into quads alone, the midpoints
+//!    they leave on their neighbours' edges joined through strips; where
+//!    those cannot all be joined, their model faces alone; where neither
+//!    can, their faces with every face sharing an edge with them
+//!    ([`SubdivisionScope`], [`super::subdivision`]).
 //!
 //! Feature-curve edges are never removed (no pair crosses one). The vertex
 //! set is the triangulation's plus the subdivision's new vertices, appended,
@@ -34,6 +37,7 @@ use super::pairing::{DualGraph, MIN_PAIR_SCALED_JACOBIAN, MIN_POOR_PAIR_SCALED_J
 use super::strip::{StripStats, join_free_triangles};
 use super::subdivision::{Element, faces_to_subdivide, subdivide};
 use super::surface_mesh::{QuadMesh, SurfaceTriangulation};
+use super::transition::subdivide_alone;
 use crate::progress::Progress;
 
 /// What recombination did (for the report).
@@ -65,8 +69,22 @@ pub struct RecombineStats {
     /// Poor pairs in the final matching (quads not above the candidates'
     /// floor).
     pub n_poor_pairs: usize,
-    /// Model faces midpoint-subdivided (the last resort; should be 0).
+    /// Model faces where midpoint subdivision was used (the last resort;
+    /// should be 0): faces holding a triangle split alone, or every face
+    /// subdivided whole.
     pub n_subdivided_faces: usize,
+    /// Free triangles split alone into three quads ([`super::transition`]).
+    pub n_triangles_subdivided: usize,
+    /// What subdivision split.
+    pub subdivision_scope: SubdivisionScope,
+    /// Narrower scopes whose mesh the later steps could not untangle (the
+    /// stage recombined again with a wider one).
+    pub scopes_refused: Vec<SubdivisionScope>,
+    /// Strips that join the midpoints the elements split alone left on
+    /// their neighbours' edges.
+    pub n_transition_strips: usize,
+    /// Quads those strips split.
+    pub n_transition_quads_split: usize,
     /// Quads made by subdivision.
     pub n_subdivision_quads: usize,
     /// Quads out.
@@ -81,14 +99,38 @@ pub struct RecombineStats {
     pub seconds: f64,
 }
 
+/// What midpoint subdivision split, from the most local to the widest.
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq, PartialOrd, Ord, Serialize)]
+#[serde(rename_all = "snake_case")]
+pub enum SubdivisionScope {
+    /// Nothing: no triangle was left free.
+    #[default]
+    None,
+    /// The free triangles alone, the midpoints they left on the quads
+    /// around joined through strips ([`super::transition`]).
+    Triangles,
+    /// The model faces holding free triangles, alone (their greedy pairs and
+    /// triangles split), where the midpoints of the triangles alone could
+    /// not all be joined.
+    Faces,
+    /// Those faces with every face sharing an edge with them, transitively
+    /// (their whole component), where neither could.
+    FacesWithNeighbours,
+}
+
 /// All-quad mesh from the triangles of `tri` (module doc), with what was
-/// done.
+/// done; subdivision, if needed, splits no less than `narrowest` (the
+/// stage widens it when the later steps cannot untangle a narrower one).
 ///
 /// # Errors
 /// [`QuadsError::CheckFailed`] when `tri`'s arrays disagree in length or
 /// name a vertex that does not exist (a bug of the triangulation step),
 /// [`QuadsError::Cancelled`].
-pub fn recombine(mut tri: SurfaceTriangulation, progress: &Progress) -> Result<(QuadMesh, RecombineStats), QuadsError> {
+pub fn recombine(
+    mut tri: SurfaceTriangulation,
+    narrowest: SubdivisionScope,
+    progress: &Progress,
+) -> Result<(QuadMesh, RecombineStats), QuadsError> {
     let start = Instant::now();
     check_input(&tri)?;
     let mut stats = RecombineStats { n_triangles_in: tri.triangles.len(), ..RecombineStats::default() };
@@ -167,22 +209,66 @@ pub fn recombine(mut tri: SurfaceTriangulation, progress: &Progress) -> Result<(
         .filter(|(e, _)| matches!(e, Element::Triangle(_)))
         .map(|(_, &f)| f)
         .collect();
-    let flagged = faces_to_subdivide(n_faces, &failing, &graph.face_links);
-    stats.n_subdivided_faces = flagged.iter().filter(|&&f| f).count();
-    let (elements, face_per_element) = if flagged.contains(&true) {
-        // A face that is subdivided anyway is split from the greedy pairs, the
-        // cheapest (best-shaped) ones, rather than from the pairs augmenting
-        // paths forced (on fandisk those gave 165 irregular vertices and a
-        // quad of scaled Jacobian 10⁻⁵ against 132 and 0.036).
+    // A face that is subdivided is split from the greedy pairs, the
+    // cheapest (best-shaped) ones, rather than from the pairs augmenting
+    // paths forced (on fandisk those gave 165 irregular vertices and a quad
+    // of scaled Jacobian 10⁻⁵ against 132 and 0.036).
+    let split_from_greedy = |flagged: &[bool]| -> (Vec<Element>, Vec<u32>) {
         let inside = matching_elements(&triangles, &model_face_per_triangle, &graph, &greedy, |f| flagged[f as usize]);
-        let outside = elements.into_iter().zip(face_per_element).filter(|(_, f)| !flagged[*f as usize]);
-        outside.chain(inside.0.into_iter().zip(inside.1)).unzip()
-    } else {
-        (elements, face_per_element)
+        let outside = elements.iter().zip(&face_per_element).filter(|(_, f)| !flagged[**f as usize]);
+        outside.map(|(e, f)| (*e, *f)).chain(inside.0.into_iter().zip(inside.1)).unzip()
     };
-    let (quads, model_face_per_quad, n_subdivision_quads) =
-        subdivide(&mut vertices, &elements, &face_per_element, &flagged, &mut curve_edges);
-    stats.n_subdivision_quads = n_subdivision_quads;
+    // Free triangles split alone; if the midpoints they leave cannot all be
+    // joined, their faces alone; else their faces with every face around.
+    let mut faces_failing = vec![false; n_faces];
+    for &f in &failing {
+        faces_failing[f as usize] = true;
+    }
+    let alone = if failing.is_empty() || narrowest > SubdivisionScope::Faces {
+        None
+    } else {
+        let split: Vec<bool> = elements.iter().map(|e| matches!(e, Element::Triangle(_))).collect();
+        let triangles_alone = if narrowest <= SubdivisionScope::Triangles {
+            subdivide_alone(&mut vertices, &elements, &face_per_element, &split, &mut curve_edges)
+        } else {
+            None
+        };
+        triangles_alone.map(|a| (a, SubdivisionScope::Triangles)).or_else(|| {
+            let (elements, faces) = split_from_greedy(&faces_failing);
+            let split: Vec<bool> = faces.iter().map(|&f| faces_failing[f as usize]).collect();
+            let faces_alone = subdivide_alone(&mut vertices, &elements, &faces, &split, &mut curve_edges);
+            faces_alone.map(|a| (a, SubdivisionScope::Faces))
+        })
+    };
+    let (quads, model_face_per_quad) = match alone {
+        Some((alone, scope)) => {
+            stats.subdivision_scope = scope;
+            stats.n_subdivided_faces = faces_failing.iter().filter(|&&f| f).count();
+            if scope == SubdivisionScope::Triangles {
+                stats.n_triangles_subdivided = failing.len();
+            }
+            stats.n_subdivision_quads = alone.n_subdivision_quads;
+            stats.n_transition_strips = alone.n_strips;
+            stats.n_transition_quads_split = alone.n_quads_split;
+            (alone.quads, alone.faces)
+        }
+        None => {
+            let flagged = faces_to_subdivide(n_faces, &failing, &graph.face_links);
+            stats.n_subdivided_faces = flagged.iter().filter(|&&f| f).count();
+            if flagged.contains(&true) {
+                stats.subdivision_scope = SubdivisionScope::FacesWithNeighbours;
+            }
+            let (elements, face_per_element) = if flagged.contains(&true) {
+                split_from_greedy(&flagged)
+            } else {
+                (elements.clone(), face_per_element.clone())
+            };
+            let split: Vec<bool> = face_per_element.iter().map(|&f| flagged[f as usize]).collect();
+            let subdivided = subdivide(&mut vertices, &elements, &face_per_element, &split, &mut curve_edges);
+            stats.n_subdivision_quads = subdivided.n_subdivision_quads;
+            (subdivided.quads, subdivided.faces)
+        }
+    };
     stats.n_quads = quads.len();
     stats.subdivision_seconds = t.elapsed().as_secs_f64();
     stats.seconds = start.elapsed().as_secs_f64();
@@ -355,7 +441,7 @@ mod tests {
     }
 
     fn run(tri: &SurfaceTriangulation) -> (QuadMesh, RecombineStats) {
-        recombine(tri.clone(), &Progress::none()).expect("recombination succeeds")
+        recombine(tri.clone(), SubdivisionScope::Triangles, &Progress::none()).expect("recombination succeeds")
     }
 
     /// Asserts every quad strictly convex against +z, every directed edge
@@ -495,20 +581,29 @@ mod tests {
         let tri = planar_triangulation(&points, triangles, vec![0; 3]);
         let n_curve = tri.curve_edges.len();
         let (mesh, stats) = run(&tri);
-        assert_eq!((stats.n_subdivided_faces, stats.n_subdivision_quads, stats.n_quads), (1, 7, 7));
+        // The free triangle alone becomes 3 quads; the midpoint it leaves on
+        // the pair's quad is joined to the middle of the quad's opposite
+        // boundary edge, cutting it in two.
+        assert_eq!((stats.n_subdivided_faces, stats.n_subdivision_quads, stats.n_quads), (1, 3, 5));
+        assert_eq!(
+            (stats.n_triangles_subdivided, stats.n_transition_strips, stats.subdivision_scope),
+            (1, 1, SubdivisionScope::Triangles)
+        );
         assert_eq!(stats.n_unmatched_after_matching, 1);
-        // 6 vertices (u2 now unused), 6 edge midpoints, 2 centres.
-        assert_eq!(mesh.vertices.len(), 14);
-        assert_eq!(mesh.curve_edges.len(), 2 * n_curve);
-        for &(_, [a, b]) in &mesh.curve_edges {
-            let new = a.max(b);
-            assert!(new >= 6 && mesh.vertices.entity[new as usize] == ModelEntity::Curve(0));
-        }
+        // 6 vertices (u2 now unused), 3 edge midpoints, 1 centre, and the
+        // strip's end on the boundary.
+        assert_eq!(mesh.vertices.len(), 11);
+        assert_eq!(mesh.curve_edges.len(), n_curve + 3);
+        let mut new_on_curve: Vec<u32> = mesh.curve_edges.iter().flat_map(|(_, e)| *e).filter(|&v| v >= 6).collect();
+        new_on_curve.sort_unstable();
+        new_on_curve.dedup();
+        assert_eq!(new_on_curve.len(), 3);
+        assert!(new_on_curve.iter().all(|&v| mesh.vertices.entity[v as usize] == ModelEntity::Curve(0)));
         assert_valid(&mesh);
     }
 
     #[test]
-    fn subdivision_spreads_to_faces_sharing_an_edge_and_no_further() {
+    fn an_odd_face_has_one_triangle_subdivided_alone_and_a_face_apart_untouched() {
         // Face 0: cells x < 2 of a 4 × 4 grid; face 1: cells x ≥ 2 less the
         // upper triangle of cell (3, 3), the last one (15 triangles, odd);
         // face 2: a detached unit square far away.
@@ -523,7 +618,11 @@ mod tests {
         assert_eq!(faces.iter().filter(|&&f| f == 1).count() % 2, 1);
         let tri = planar_triangulation(&points, triangles, faces);
         let (mesh, stats) = run(&tri);
-        assert_eq!(stats.n_subdivided_faces, 2, "{stats:?}");
+        // Face 1's one free triangle becomes 3 quads; the midpoints it leaves
+        // on the quads around it are joined by strips; nothing else is split.
+        assert_eq!((stats.n_subdivided_faces, stats.n_triangles_subdivided), (1, 1), "{stats:?}");
+        assert_eq!((stats.n_subdivision_quads, stats.subdivision_scope), (3, SubdivisionScope::Triangles), "{stats:?}");
+        assert!(stats.n_transition_strips >= 1 && stats.n_transition_quads_split >= 1, "{stats:?}");
         let squares_in_face_2 = mesh.model_face_per_quad.iter().filter(|&&f| f == 2).count();
         assert_eq!(squares_in_face_2, 1);
         assert_valid(&mesh);
@@ -581,9 +680,15 @@ mod tests {
         let (points, triangles) = strip();
         let mut tri = planar_triangulation(&points, triangles, vec![0; 4]);
         tri.cross_per_triangle.pop();
-        assert!(matches!(recombine(tri, &Progress::none()), Err(QuadsError::CheckFailed { .. })));
+        assert!(matches!(
+            recombine(tri, SubdivisionScope::Triangles, &Progress::none()),
+            Err(QuadsError::CheckFailed { .. })
+        ));
         let mut tri = planar_triangulation(&points, vec![[0, 1, 3]], vec![0]);
         tri.triangles[0] = [0, 1, 9];
-        assert!(matches!(recombine(tri, &Progress::none()), Err(QuadsError::CheckFailed { .. })));
+        assert!(matches!(
+            recombine(tri, SubdivisionScope::Triangles, &Progress::none()),
+            Err(QuadsError::CheckFailed { .. })
+        ));
     }
 }

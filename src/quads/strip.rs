@@ -25,11 +25,11 @@
 //! relaxed again from its split with guarded moves ([`Relax::Guarded`]),
 //! and a triangle with no route around closed quads may take one through
 //! them. A kept strip's quads are open to later strips; strips are undone
-//! in reverse order, each restoring the slots it took. A face where a
-//! triangle still has no partner after [`STRIP_ROUNDS`] rounds (odd count,
-//! or no valid route) has all its strips undone and is left to
-//! subdivision. The midpoints' irregular vertices are removed later by
-//! cavity remeshing.
+//! in reverse order, each restoring the slots it took. A triangle that
+//! still has no partner after [`STRIP_ROUNDS`] rounds (odd count, or no
+//! valid route) is left free for subdivision
+//! ([`super::transition::subdivide_alone`]). The midpoints' irregular
+//! vertices are removed later by cavity remeshing.
 
 use std::collections::{HashMap, HashSet, VecDeque};
 
@@ -48,30 +48,30 @@ pub struct StripStats {
     /// Quads split along the strips.
     pub n_quads_split: usize,
     /// Strips undone because a quad of a strip of their face stayed at or
-    /// below the scaled Jacobian floor after relaxing (the face is left to
-    /// subdivision).
+    /// below the scaled Jacobian floor after relaxing (their triangles are
+    /// left to subdivision).
     pub n_strips_undone: usize,
 }
 
 /// The elements with an index of their edges.
-struct Elements<'a> {
-    elements: Vec<Option<(Element, u32)>>,
+pub(super) struct Elements<'a> {
+    pub(super) elements: Vec<Option<(Element, u32)>>,
     /// Elements made by a strip of the round (not crossed by the round's
     /// later strips, so a strip can be undone alone).
-    frozen: Vec<bool>,
+    pub(super) frozen: Vec<bool>,
     /// Quads an undone strip crossed: its triangles route around them.
     closed: Vec<bool>,
-    by_edge: HashMap<(u32, u32), Vec<usize>>,
+    pub(super) by_edge: HashMap<(u32, u32), Vec<usize>>,
     curve: &'a HashSet<(u32, u32)>,
 }
 
 /// The edge `a b` as a key.
-fn key(a: u32, b: u32) -> (u32, u32) {
+pub(super) fn key(a: u32, b: u32) -> (u32, u32) {
     (a.min(b), a.max(b))
 }
 
 impl<'a> Elements<'a> {
-    fn new(elements: &[Element], faces: &[u32], curve: &'a HashSet<(u32, u32)>) -> Self {
+    pub(super) fn new(elements: &[Element], faces: &[u32], curve: &'a HashSet<(u32, u32)>) -> Self {
         let mut out = Self {
             elements: Vec::with_capacity(elements.len()),
             frozen: Vec::new(),
@@ -86,7 +86,7 @@ impl<'a> Elements<'a> {
     }
 
     /// Appends `element` of model face `face`.
-    fn add(&mut self, element: Element, face: u32) -> usize {
+    pub(super) fn add(&mut self, element: Element, face: u32) -> usize {
         let i = self.elements.len();
         self.frozen.push(false);
         self.closed.push(false);
@@ -105,7 +105,7 @@ impl<'a> Elements<'a> {
     }
 
     /// Removes element `i`.
-    fn remove(&mut self, i: usize) {
+    pub(super) fn remove(&mut self, i: usize) {
         let Some((element, _)) = self.elements[i].take() else { return };
         let c = element.corners();
         for k in 0..c.len() {
@@ -174,14 +174,14 @@ const NO_ENTRY: usize = usize::MAX;
 /// A state of the path search: an element, the corner slot of the edge it
 /// was entered by.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
-struct Step {
-    element: usize,
-    entry: usize,
+pub(super) struct Step {
+    pub(super) element: usize,
+    pub(super) entry: usize,
 }
 
 /// The path from `start` to `end` in the search's `parent` links:
 /// `(element, edge crossed into it)`, the first element with a dummy edge.
-fn unwind(parent: &HashMap<Step, (Step, (u32, u32))>, start: Step, end: Step) -> Vec<(usize, (u32, u32))> {
+pub(super) fn unwind(parent: &HashMap<Step, (Step, (u32, u32))>, start: Step, end: Step) -> Vec<(usize, (u32, u32))> {
     let mut path = Vec::new();
     let mut s = end;
     while s != start {
@@ -195,7 +195,7 @@ fn unwind(parent: &HashMap<Step, (Step, (u32, u32))>, start: Step, end: Step) ->
 }
 
 /// `corners` with `mid` inserted on edge `edge` (wherever it is in the cycle).
-fn insert_midpoint(corners: &[u32], edge: (u32, u32), mid: u32) -> Vec<u32> {
+pub(super) fn insert_midpoint(corners: &[u32], edge: (u32, u32), mid: u32) -> Vec<u32> {
     let n = corners.len();
     let mut out = Vec::with_capacity(n + 1);
     for k in 0..n {
@@ -214,7 +214,7 @@ fn insert_midpoint(corners: &[u32], edge: (u32, u32), mid: u32) -> Vec<u32> {
 /// new vertex at the corners' centroid (appended to `extra`), joined to both
 /// midpoints and to the corner opposite the turn. Either way each midpoint
 /// ends an edge into the quad, so no midpoint is left a flat corner.
-fn split_crossed_quad(
+pub(super) fn split_crossed_quad(
     vertices: &mut SurfaceVertices,
     h: &[u32],
     m: [u32; 2],
@@ -237,7 +237,7 @@ fn split_crossed_quad(
 }
 
 /// Unit normal of the polygon `corners` (Newell's formula), `+z` if degenerate.
-fn polygon_normal(corners: &[u32], positions: &[Vec3]) -> Vec3 {
+pub(super) fn polygon_normal(corners: &[u32], positions: &[Vec3]) -> Vec3 {
     let n = corners.len();
     let sum = (0..n).fold(Vec3::zeros(), |acc, k| {
         acc + positions[corners[k] as usize].cross(&positions[corners[(k + 1) % n] as usize])
@@ -252,7 +252,7 @@ const RELAX_SWEEPS: usize = 20;
 
 /// A strip that leaves a quad at or below this scaled Jacobian (after
 /// relaxing) is undone.
-const MIN_SCALED_JACOBIAN: f64 = 0.05;
+pub(super) const MIN_SCALED_JACOBIAN: f64 = 0.05;
 
 /// Rounds of strip joining: a strip left invalid by relaxing is undone and
 /// the quads it crossed are closed to later strips, so its two triangles
@@ -268,10 +268,9 @@ const RESCUE_ROUND: usize = 2;
 /// Joins the free triangles of `elements` (model faces `faces`) in pairs
 /// (module doc), appending the midpoints to `vertices`. Returns the new
 /// elements and faces. A strip that relaxing leaves invalid is undone alone
-/// and its triangles try another route (up to [`STRIP_ROUNDS`] rounds); in
-/// a face where triangles stay free after that every strip is undone, so
-/// subdivision splits the matching's elements (midpoints of undone strips
-/// are left unused: cleanup drops vertices in no quad).
+/// and its triangles try another route (up to [`STRIP_ROUNDS`] rounds);
+/// triangles still free after that are left for subdivision (midpoints of
+/// undone strips are left unused: cleanup drops vertices in no quad).
 pub fn join_free_triangles(
     vertices: &mut SurfaceVertices,
     elements: &[Element],
@@ -324,15 +323,11 @@ pub fn join_free_triangles(
             stats.n_strips_undone += 1;
         }
     }
-    // A face where a triangle stays free (or a strip stays invalid) is
-    // subdivided: all its strips are undone.
+    // A face where a strip stays invalid has all its strips undone (a later
+    // strip of the face may have split the invalid one's quads). Triangles
+    // left free are split by subdivision, alone where it can.
     let n_faces = faces.iter().map(|&f| f as usize + 1).max().unwrap_or(0);
     let mut refused = vec![false; n_faces];
-    for (element, face) in work.elements.iter().flatten() {
-        if matches!(element, Element::Triangle(_)) {
-            refused[*face as usize] = true;
-        }
-    }
     for strip in &kept {
         if !strip.is_valid(&work, vertices) {
             refused[strip.face() as usize] = true;
@@ -377,13 +372,13 @@ fn strip_round(work: &mut Elements, vertices: &mut SurfaceVertices, reopen: bool
 
 /// A strip that was split: the elements it replaced and the ones it made
 /// (each with the normal of the element it came from).
-struct Strip {
+pub(super) struct Strip {
     /// The slots of the elements it replaced, in path order.
-    path: Vec<usize>,
-    originals: Vec<(Element, u32)>,
-    made: Vec<(usize, Vec3)>,
+    pub(super) path: Vec<usize>,
+    pub(super) originals: Vec<(Element, u32)>,
+    pub(super) made: Vec<(usize, Vec3)>,
     /// The vertices it added, with their position when split.
-    mids: Vec<(u32, Vec3)>,
+    pub(super) mids: Vec<(u32, Vec3)>,
 }
 
 impl Strip {
@@ -394,7 +389,7 @@ impl Strip {
 
     /// Whether every quad the strip made is above [`MIN_SCALED_JACOBIAN`]
     /// against the normal of the element it came from.
-    fn is_valid(&self, work: &Elements, vertices: &SurfaceVertices) -> bool {
+    pub(super) fn is_valid(&self, work: &Elements, vertices: &SurfaceVertices) -> bool {
         self.made.iter().all(|(e, normal)| match work.elements[*e] {
             Some((Element::Quad(q), _)) => {
                 scaled_jacobian(&q.map(|v| vertices.positions[v as usize]), normal) > MIN_SCALED_JACOBIAN
@@ -407,7 +402,7 @@ impl Strip {
     /// slots (so strips undone in reverse order of making restore a
     /// consistent mesh even where a later strip split an earlier one's
     /// quads).
-    fn undo(&self, work: &mut Elements) {
+    pub(super) fn undo(&self, work: &mut Elements) {
         for (e, _) in &self.made {
             work.remove(*e);
         }
@@ -419,7 +414,7 @@ impl Strip {
 
 /// How [`relax_midpoints`] takes a move.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
-enum Relax {
+pub(super) enum Relax {
     /// Every move to the centroid: the evenest strips, which later cleanup
     /// and cavity remeshing take best.
     Free,
@@ -435,7 +430,13 @@ enum Relax {
 /// neighbours in the quads `strips` made, [`RELAX_SWEEPS`] times in order,
 /// as `relax` allows. Positions only: the smoothing step projects every
 /// vertex onto the surface.
-fn relax_midpoints(work: &Elements, vertices: &mut SurfaceVertices, mids: &[u32], strips: &[&Strip], relax: Relax) {
+pub(super) fn relax_midpoints(
+    work: &Elements,
+    vertices: &mut SurfaceVertices,
+    mids: &[u32],
+    strips: &[&Strip],
+    relax: Relax,
+) {
     // Every element at a midpoint is a quad one of `strips` made (the
     // elements on both sides of a crossed edge are the strip's own).
     let wanted: HashSet<u32> = mids.iter().copied().collect();

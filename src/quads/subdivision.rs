@@ -1,16 +1,17 @@
 //! Midpoint subdivision, the last resort of recombination (Gmsh's
 //! full-quad guarantee; research quad-meshing §1.1, §5.1 step 4): every
-//! element of a set of model faces is split at its edge midpoints and its
-//! centroid, a quad `(a, b, c, d)` into the 4 quads `(a, m_ab, g, m_da)`, …,
+//! element of a set (free triangles alone, [`super::transition`], or whole
+//! model faces) is split at its edge midpoints and its centroid, a quad `(a, b, c, d)` into the 4 quads `(a, m_ab, g, m_da)`, …,
 //! a triangle `(a, b, c)` into the 3 quads `(a, m_ab, g, m_ca)`, …, all
 //! counter-clockwise as their parent. Every element then becomes quads, and
 //! a face whose triangles cannot all be paired (odd count, or no perfect
 //! matching among the convex pairs) gets an all-quad mesh.
 //!
-//! Splitting a face's boundary edges changes its neighbours' boundaries
-//! too, so the set is closed over faces sharing an edge
-//! ([`faces_to_subdivide`]): a face is either split whole, with its
-//! neighbours, or left alone, and the mesh stays conforming.
+//! Splitting a set's boundary edges changes its neighbours' boundaries
+//! too: [`super::transition`] joins the midpoints left on them through
+//! strips; where it cannot, the set of faces is closed over faces sharing
+//! an edge ([`faces_to_subdivide`]), so a face is either split whole, with
+//! its neighbours, or left alone, and the mesh stays conforming.
 //!
 //! A midpoint on a feature curve is classified on that curve and the curve
 //! edge is replaced by its two halves, in curve order; other new vertices
@@ -72,26 +73,39 @@ pub fn faces_to_subdivide(n_faces: usize, failing: &[u32], face_links: &[[u32; 2
     flag
 }
 
-/// Splits each element of `elements` (model face `face_per_element`) whose
-/// face is flagged in `flagged` (module doc), appending the new vertices
-/// to `vertices` and updating `curve_edges`. Returns the quads and their
-/// model faces, in element order, and the number of quads made by
-/// subdivision. Unflagged triangles are dropped (the caller flags every face
-/// holding one).
+/// What [`subdivide`] made.
+#[derive(Debug, Clone, Default)]
+pub struct Subdivided {
+    /// The quads, in element order.
+    pub quads: Vec<[u32; 4]>,
+    /// Model face of each quad.
+    pub faces: Vec<u32>,
+    /// Quads made by subdivision.
+    pub n_subdivision_quads: usize,
+    /// The edges split, as `(edge key, midpoint)` in key order: an
+    /// unflagged element on the other side still holds the whole edge (its
+    /// caller joins such midpoints through strips).
+    pub midpoints: Vec<((u32, u32), u32)>,
+}
+
+/// Splits each element of `elements` (model face `face_per_element`)
+/// flagged in `split` (module doc), appending the new vertices to
+/// `vertices` and updating `curve_edges`. Unflagged triangles are dropped
+/// (the caller flags every triangle).
 pub fn subdivide(
     vertices: &mut SurfaceVertices,
     elements: &[Element],
     face_per_element: &[u32],
-    flagged: &[bool],
+    split: &[bool],
     curve_edges: &mut Vec<CurveEdge>,
-) -> (Vec<[u32; 4]>, Vec<u32>, usize) {
+) -> Subdivided {
     let curve_of: HashMap<(u32, u32), u32> = curve_edges.iter().map(|&(c, [a, b])| ((a.min(b), a.max(b)), c)).collect();
     let mut midpoints: HashMap<(u32, u32), u32> = HashMap::new();
     let mut quads = Vec::with_capacity(elements.len());
     let mut faces = Vec::with_capacity(elements.len());
     let mut n_subdivision_quads = 0;
-    for (element, &face) in elements.iter().zip(face_per_element) {
-        if !flagged[face as usize] {
+    for ((element, &face), &split) in elements.iter().zip(face_per_element).zip(split) {
+        if !split {
             if let Element::Quad(q) = element {
                 quads.push(*q);
                 faces.push(face);
@@ -124,7 +138,9 @@ pub fn subdivide(
             None => vec![(c, [a, b])],
         })
         .collect();
-    (quads, faces, n_subdivision_quads)
+    let mut midpoints: Vec<((u32, u32), u32)> = midpoints.into_iter().collect();
+    midpoints.sort_unstable();
+    Subdivided { quads, faces, n_subdivision_quads, midpoints }
 }
 
 /// Appends the vertex at the mean of `corners` (module doc) and returns it.
