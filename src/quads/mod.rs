@@ -147,11 +147,11 @@ pub fn build_quads(
             // A narrow subdivision the later steps left tangled: recombine
             // again with a wider one (their output passed these checks
             // before narrow ones existed).
-            Err(QuadsError::CheckFailed { .. })
+            Err(failed @ QuadsError::CheckFailed { .. })
                 if scope > recombine::SubdivisionScope::None
                     && scope < recombine::SubdivisionScope::FacesWithNeighbours =>
             {
-                refused.push(scope);
+                refused.push(recombine::RefusedScope { scope, reason: failed.to_string() });
                 narrowest = if scope == recombine::SubdivisionScope::Triangles {
                     recombine::SubdivisionScope::Faces
                 } else {

@@ -79,7 +79,7 @@ pub struct RecombineStats {
     pub subdivision_scope: SubdivisionScope,
     /// Narrower scopes whose mesh the later steps could not untangle (the
     /// stage recombined again with a wider one).
-    pub scopes_refused: Vec<SubdivisionScope>,
+    pub scopes_refused: Vec<RefusedScope>,
     /// Strips that join the midpoints the elements split alone left on
     /// their neighbours' edges.
     pub n_transition_strips: usize,
@@ -116,6 +116,15 @@ pub enum SubdivisionScope {
     /// Those faces with every face sharing an edge with them, transitively
     /// (their whole component), where neither could.
     FacesWithNeighbours,
+}
+
+/// A subdivision scope whose mesh failed the stage's checks.
+#[derive(Debug, Clone, PartialEq, Eq, Serialize)]
+pub struct RefusedScope {
+    /// The scope.
+    pub scope: SubdivisionScope,
+    /// The check that failed, as the stage's error says it.
+    pub reason: String,
 }
 
 /// All-quad mesh from the triangles of `tri` (module doc), with what was

@@ -18,10 +18,13 @@
 //!
 //! Midpoints on curves stay on the curve's chord (the smoothing step
 //! projects them onto the curve); the others are relaxed like the strips of
-//! [`super::strip`], freely, then under guard if a quad folded. A hanging
-//! midpoint with no route, or a strip still folded, leaves the triangles to
-//! the caller's whole-face subdivision, with `vertices` and the curve edges
-//! as they were.
+//! [`super::strip`], freely, then under guard if a quad folded. A strip
+//! still folded is undone and another route sought, leaving its quads by
+//! other edges (up to [`ROUTE_ATTEMPTS`]); if none is valid, the shortest
+//! is kept and every strip relaxed again together at the end. A hanging
+//! midpoint with no route, or a strip still folded, leaves the elements to
+//! the caller's wider subdivision, with `vertices` and the curve edges as
+//! they were.
 //!
 //! On the corpus the triangles left free are in tiny faces of two to four
 //! triangles between curves (a non-convex pair, or no valid strip inside
@@ -101,18 +104,59 @@ fn join_hanging_midpoints(
     let halves: HashSet<(u32, u32)> = hanging.iter().flat_map(|(&(a, b), &m)| [key(a, m), key(m, b)]).collect();
     let mut out = SubdividedAlone { n_subdivision_quads, ..SubdividedAlone::default() };
     let mut strips: Vec<TransitionStrip> = Vec::new();
+    let mut folded = false;
     for edge in order {
         let Some(start) = hanging.remove(&edge) else { continue };
-        let route = route_from_hanging_edge(&work, edge, &hanging, &curves.curve_of, &halves)?;
-        let end = match hanging.remove(&route.exit) {
-            Some(m) => m,
-            None => curves.split(vertices, route.exit)?,
-        };
-        out.n_quads_split += route.quads.len();
-        strips.push(split_route(&mut work, vertices, &route, [start, end], &mut curves));
+        // A route whose strip stays folded is undone, and the next search
+        // may not leave its quads by the edges it left them by.
+        let mut blocked: HashSet<(usize, (u32, u32))> = HashSet::new();
+        let mut joined = false;
+        for _ in 0..ROUTE_ATTEMPTS {
+            let Some(route) = route_from_hanging_edge(&work, edge, &hanging, &curves.curve_of, &halves, &blocked)
+            else {
+                break;
+            };
+            let n_splits = curves.log.len();
+            let (end, was_hanging) = match hanging.remove(&route.exit) {
+                Some(m) => (m, true),
+                None => (curves.split(vertices, route.exit)?, false),
+            };
+            let strip = split_route(&mut work, vertices, &route, [start, end], &mut curves);
+            if relax_until_valid(&work, vertices, &strip) {
+                out.n_quads_split += route.quads.len();
+                strips.push(strip);
+                joined = true;
+                break;
+            }
+            strip.strip.undo(&mut work);
+            curves.undo_to(n_splits);
+            if was_hanging {
+                hanging.insert(route.exit, end);
+            }
+            let exits = route.quads[1..].iter().map(|q| q.1).chain([route.exit]);
+            blocked.extend(route.quads.iter().map(|q| q.0).zip(exits));
+        }
+        if !joined {
+            // The shortest route again, kept folded: relaxing every strip
+            // together below may still open it.
+            let route = route_from_hanging_edge(&work, edge, &hanging, &curves.curve_of, &halves, &HashSet::new())?;
+            let end = match hanging.remove(&route.exit) {
+                Some(m) => m,
+                None => curves.split(vertices, route.exit)?,
+            };
+            out.n_quads_split += route.quads.len();
+            strips.push(split_route(&mut work, vertices, &route, [start, end], &mut curves));
+            folded = true;
+        }
     }
     out.n_strips = strips.len();
-    relax_until_valid(&work, vertices, &strips)?;
+    // A later strip only splits an earlier one's quads and moves its own
+    // midpoints, so a strip relaxed valid stays so. A folded one is opened,
+    // if it can be, by relaxing all of them together, freely, then from
+    // their split positions under guard.
+    if folded && !relax_together(&work, vertices, &strips) {
+        return None;
+    }
     *curve_edges = curve_edges.iter().flat_map(|&edge| curves.halves(edge)).collect();
     for (element, face) in work.elements.into_iter().flatten() {
         let Element::Quad(q) = element else { return None };
@@ -122,18 +166,33 @@ fn join_hanging_midpoints(
     Some(out)
 }
 
+/// Routes tried for one hanging midpoint before the elements are left to a
+/// wider subdivision.
+const ROUTE_ATTEMPTS: usize = 4;
+
 /// The curve edges, and those the strips split.
 struct CurveSplits {
     /// The curve of each curve edge (the halves of split ones included).
     curve_of: HashMap<(u32, u32), u32>,
     /// The midpoint of each curve edge a strip split.
     midpoint: HashMap<(u32, u32), u32>,
+    /// The edges split, in order (so an undone strip's splits can be
+    /// forgotten).
+    log: Vec<(u32, u32)>,
 }
 
 impl CurveSplits {
     fn new(curve_edges: &[CurveEdge]) -> Self {
         let curve_of = curve_edges.iter().map(|&(c, [a, b])| (key(a, b), c)).collect();
-        Self { curve_of, midpoint: HashMap::new() }
+        Self { curve_of, midpoint: HashMap::new(), log: Vec::new() }
+    }
+
+    /// Forgets the splits after the first `n` (their halves stay in
+    /// `curve_of`: no element has those edges any more).
+    fn undo_to(&mut self, n: usize) {
+        for edge in self.log.drain(n..) {
+            self.midpoint.remove(&edge);
+        }
     }
 
     /// Splits the curve edge `edge` at a new midpoint classified on its
@@ -143,6 +202,7 @@ impl CurveSplits {
         let (a, b) = edge;
         let m = push_mean_vertex(vertices, &[a, b], ModelEntity::Curve(c));
         self.midpoint.insert(edge, m);
+        self.log.push(edge);
         self.curve_of.insert(key(a, m), c);
         self.curve_of.insert(key(m, b), c);
         Some(m)
@@ -192,20 +252,35 @@ impl TransitionStrip {
     }
 }
 
-/// Relaxes the strips' midpoints off curves freely; if a strip folds, again
-/// from the split positions under guard. `None` when one stays folded.
-fn relax_until_valid(work: &Elements, vertices: &mut SurfaceVertices, strips: &[TransitionStrip]) -> Option<()> {
+/// Relaxes the strip's midpoints off curves freely; if a quad folds, again
+/// from the split positions under guard. Whether it ends valid.
+fn relax_until_valid(work: &Elements, vertices: &mut SurfaceVertices, strip: &TransitionStrip) -> bool {
+    let mids: Vec<u32> = strip.strip.mids.iter().map(|&(m, _)| m).collect();
+    relax_midpoints(work, vertices, &mids, &[&strip.strip], Relax::Free);
+    if strip.is_valid(work, vertices) {
+        return true;
+    }
+    for &(m, at) in &strip.strip.mids {
+        vertices.positions[m as usize] = at;
+    }
+    relax_midpoints(work, vertices, &mids, &[&strip.strip], Relax::Guarded);
+    strip.is_valid(work, vertices)
+}
+
+/// [`relax_until_valid`] for all `strips` together, each midpoint moving
+/// toward the centroid of its neighbours in any of their quads.
+fn relax_together(work: &Elements, vertices: &mut SurfaceVertices, strips: &[TransitionStrip]) -> bool {
     let all: Vec<&Strip> = strips.iter().map(|s| &s.strip).collect();
     let mids: Vec<u32> = all.iter().flat_map(|s| s.mids.iter().map(|&(m, _)| m)).collect();
     relax_midpoints(work, vertices, &mids, &all, Relax::Free);
     if strips.iter().all(|s| s.is_valid(work, vertices)) {
-        return Some(());
+        return true;
     }
     for &(m, at) in all.iter().flat_map(|s| &s.mids) {
         vertices.positions[m as usize] = at;
     }
     relax_midpoints(work, vertices, &mids, &all, Relax::Guarded);
-    strips.iter().all(|s| s.is_valid(work, vertices)).then_some(())
+    strips.iter().all(|s| s.is_valid(work, vertices))
 }
 
 /// A strip's route: the quads crossed, each with the edge it is entered by
@@ -218,13 +293,15 @@ struct Route {
 /// The shortest route of quads from the one holding the hanging edge
 /// `from` to an edge that is hanging (in `hanging`) or an open boundary
 /// edge on a curve (not one of the subdivided side's `halves` of a hanging
-/// edge), crossing any edge between two quads, with no quad twice.
+/// edge), crossing any edge between two quads, with no quad twice, and
+/// leaving no quad by an edge `blocked` pairs with it.
 fn route_from_hanging_edge(
     work: &Elements,
     from: (u32, u32),
     hanging: &HashMap<(u32, u32), u32>,
     curve_of: &HashMap<(u32, u32), u32>,
     halves: &HashSet<(u32, u32)>,
+    blocked: &HashSet<(usize, (u32, u32))>,
 ) -> Option<Route> {
     let edge_slot = |c: &[u32], edge: (u32, u32)| (0..c.len()).find(|&j| key(c[j], c[(j + 1) % c.len()]) == edge);
     let &first = work.by_edge.get(&from)?.first()?;
@@ -237,6 +314,9 @@ fn route_from_hanging_edge(
         // Straight on first: a strip that does not turn adds no vertex.
         for k in [2, 1, 3].map(|d| (step.entry + d) % 4) {
             let edge = key(c[k], c[(k + 1) % 4]);
+            if blocked.contains(&(step.element, edge)) {
+                continue;
+            }
             let across = work.by_edge.get(&edge).map_or(&[][..], Vec::as_slice);
             let open = across.len() == 1 && curve_of.contains_key(&edge) && !halves.contains(&edge);
             if hanging.contains_key(&edge) || open {
