@@ -236,8 +236,8 @@ pub fn recombine(
     let alone = if failing.is_empty() || narrowest > SubdivisionScope::Faces {
         None
     } else {
-        let split: Vec<bool> = elements.iter().map(|e| matches!(e, Element::Triangle(_))).collect();
         let triangles_alone = if narrowest <= SubdivisionScope::Triangles {
+            let split: Vec<bool> = elements.iter().map(|e| matches!(e, Element::Triangle(_))).collect();
             subdivide_alone(&mut vertices, &elements, &face_per_element, &split, &mut curve_edges)
         } else {
             None

@@ -83,7 +83,7 @@ pub fn subdivide_alone(
 }
 
 /// Joins the midpoints of `subdivided.midpoints` whose edge is still
-/// whole in a quad of another face, in pairs or to open boundary edges
+/// whole in a quad that was not split, in pairs or to open boundary edges
 /// (module doc); splits the curve edges the strips cross or end at.
 fn join_hanging_midpoints(
     vertices: &mut SurfaceVertices,
@@ -166,8 +166,8 @@ fn join_hanging_midpoints(
     Some(out)
 }
 
-/// Routes tried for one hanging midpoint before the elements are left to a
-/// wider subdivision.
+/// Routes tried for one hanging midpoint before the shortest is kept
+/// folded, for the joint relax.
 const ROUTE_ATTEMPTS: usize = 4;
 
 /// The curve edges, and those the strips split.
