@@ -139,7 +139,7 @@ pub fn build_quads(
     let mut narrowest = recombine::SubdivisionScope::Triangles;
     let mut refused = Vec::new();
     let finished = loop {
-        let (mesh, mut recombination) = recombine::recombine(tri.clone(), narrowest, &progress.sub(0.4, 0.6))?;
+        let (mesh, mut recombination) = recombine::recombine(&tri, narrowest, &progress.sub(0.4, 0.6))?;
         progress.check()?;
         let scope = recombination.subdivision_scope;
         recombination.scopes_refused.clone_from(&refused);

@@ -136,15 +136,19 @@ pub struct RefusedScope {
 /// name a vertex that does not exist (a bug of the triangulation step),
 /// [`QuadsError::Cancelled`].
 pub fn recombine(
-    mut tri: SurfaceTriangulation,
+    tri: &SurfaceTriangulation,
     narrowest: SubdivisionScope,
     progress: &Progress,
 ) -> Result<(QuadMesh, RecombineStats), QuadsError> {
     let start = Instant::now();
-    check_input(&tri)?;
+    check_input(tri)?;
+    // The vertices and curve edges grow with strips and subdivision; the
+    // rest is only read (the stage may recombine the same `tri` again).
+    let mut vertices = tri.vertices.clone();
+    let mut curve_edges = tri.curve_edges.clone();
     let mut stats = RecombineStats { n_triangles_in: tri.triangles.len(), ..RecombineStats::default() };
 
-    let graph = DualGraph::new(&tri);
+    let graph = DualGraph::new(tri);
     let mut partner = greedy_partners(&graph);
     let greedy = partner.clone();
     stats.n_candidate_pairs = graph.pairs.len();
@@ -165,15 +169,15 @@ pub fn recombine(
     // their midpoints (only ever appended) are dropped.
     let (elements, face_per_element) =
         matching_elements(&tri.triangles, &tri.model_face_per_triangle, &graph, &partner, |_| true);
-    let n_vertices = tri.vertices.len();
-    let mut joined = join_free_triangles(&mut tri.vertices, &elements, &face_per_element, &tri.curve_edges);
+    let n_vertices = vertices.len();
+    let mut joined = join_free_triangles(&mut vertices, &elements, &face_per_element, &curve_edges);
     let unpaired = faces_with_triangles(n_faces, &joined.0, &joined.1);
     let graph = if unpaired.contains(&true) {
-        tri.vertices.truncate(n_vertices);
+        vertices.truncate(n_vertices);
         let floor = |f: u32| {
             if unpaired[f as usize] { MIN_POOR_PAIR_SCALED_JACOBIAN } else { MIN_PAIR_SCALED_JACOBIAN }
         };
-        let wide = DualGraph::with_floor(&tri, &floor);
+        let wide = DualGraph::with_floor(tri, &floor);
         let searched = |f: u32| unpaired[f as usize];
         let poor =
             complete_matching(&wide, &tri.model_face_per_triangle, &mut partner, &searched, &progress.sub(0.9, 0.95))?;
@@ -188,7 +192,7 @@ pub fn recombine(
             .count();
         let (elements, face_per_element) =
             matching_elements(&tri.triangles, &tri.model_face_per_triangle, &wide, &partner, |_| true);
-        joined = join_free_triangles(&mut tri.vertices, &elements, &face_per_element, &tri.curve_edges);
+        joined = join_free_triangles(&mut vertices, &elements, &face_per_element, &curve_edges);
         wide
     } else {
         graph
@@ -201,15 +205,7 @@ pub fn recombine(
     progress.check()?;
 
     let t = Instant::now();
-    let SurfaceTriangulation {
-        mut vertices,
-        mut curve_edges,
-        singular_vertices,
-        seam_vertices,
-        triangles,
-        model_face_per_triangle,
-        ..
-    } = tri;
+    let (triangles, model_face_per_triangle) = (&tri.triangles, &tri.model_face_per_triangle);
     let (elements, face_per_element, strips) = joined;
     stats.strips = strips;
     let failing: Vec<u32> = elements
@@ -223,7 +219,7 @@ pub fn recombine(
     // paths forced (on fandisk those gave 165 irregular vertices and a quad
     // of scaled Jacobian 10⁻⁵ against 132 and 0.036).
     let split_from_greedy = |flagged: &[bool]| -> (Vec<Element>, Vec<u32>) {
-        let inside = matching_elements(&triangles, &model_face_per_triangle, &graph, &greedy, |f| flagged[f as usize]);
+        let inside = matching_elements(triangles, model_face_per_triangle, &graph, &greedy, |f| flagged[f as usize]);
         let outside = elements.iter().zip(&face_per_element).filter(|(_, f)| !flagged[**f as usize]);
         outside.map(|(e, f)| (*e, *f)).chain(inside.0.into_iter().zip(inside.1)).unzip()
     };
@@ -267,13 +263,15 @@ pub fn recombine(
             if flagged.contains(&true) {
                 stats.subdivision_scope = SubdivisionScope::FacesWithNeighbours;
             }
+            let from_greedy;
             let (elements, face_per_element) = if flagged.contains(&true) {
-                split_from_greedy(&flagged)
+                from_greedy = split_from_greedy(&flagged);
+                (&from_greedy.0, &from_greedy.1)
             } else {
-                (elements.clone(), face_per_element.clone())
+                (&elements, &face_per_element)
             };
             let split: Vec<bool> = face_per_element.iter().map(|&f| flagged[f as usize]).collect();
-            let subdivided = subdivide(&mut vertices, &elements, &face_per_element, &split, &mut curve_edges);
+            let subdivided = subdivide(&mut vertices, elements, face_per_element, &split, &mut curve_edges);
             stats.n_subdivision_quads = subdivided.n_subdivision_quads;
             (subdivided.quads, subdivided.faces)
         }
@@ -288,8 +286,8 @@ pub fn recombine(
         model_face_per_quad,
         curve_edges,
         high_order_nodes: None,
-        singular_vertices,
-        seam_vertices,
+        singular_vertices: tri.singular_vertices.clone(),
+        seam_vertices: tri.seam_vertices.clone(),
     };
     Ok((mesh, stats))
 }
@@ -450,7 +448,7 @@ mod tests {
     }
 
     fn run(tri: &SurfaceTriangulation) -> (QuadMesh, RecombineStats) {
-        recombine(tri.clone(), SubdivisionScope::Triangles, &Progress::none()).expect("recombination succeeds")
+        recombine(tri, SubdivisionScope::Triangles, &Progress::none()).expect("recombination succeeds")
     }
 
     /// Asserts every quad strictly convex against +z, every directed edge
@@ -690,13 +688,13 @@ mod tests {
         let mut tri = planar_triangulation(&points, triangles, vec![0; 4]);
         tri.cross_per_triangle.pop();
         assert!(matches!(
-            recombine(tri, SubdivisionScope::Triangles, &Progress::none()),
+            recombine(&tri, SubdivisionScope::Triangles, &Progress::none()),
             Err(QuadsError::CheckFailed { .. })
         ));
         let mut tri = planar_triangulation(&points, vec![[0, 1, 3]], vec![0]);
         tri.triangles[0] = [0, 1, 9];
         assert!(matches!(
-            recombine(tri, SubdivisionScope::Triangles, &Progress::none()),
+            recombine(&tri, SubdivisionScope::Triangles, &Progress::none()),
             Err(QuadsError::CheckFailed { .. })
         ));
     }

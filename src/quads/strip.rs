@@ -58,7 +58,7 @@ pub(super) struct Elements<'a> {
     pub(super) elements: Vec<Option<(Element, u32)>>,
     /// Elements made by a strip of the round (not crossed by the round's
     /// later strips, so a strip can be undone alone).
-    pub(super) frozen: Vec<bool>,
+    frozen: Vec<bool>,
     /// Quads an undone strip crossed: its triangles route around them.
     closed: Vec<bool>,
     pub(super) by_edge: HashMap<(u32, u32), Vec<usize>>,
