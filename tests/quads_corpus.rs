@@ -52,7 +52,9 @@ const INPUTS: &[(&str, &str, Plan)] = &[
     (
         "corpus",
         "cow.obj",
-        Plan::Fails("6 inverted quads of 32528 (round the edge of a part 0.01 thick, under half the quad size)"),
+        Plan::Fails(
+            "quads of the one-triangle faces 55, 60 and 61 (caps folded back over their neighbours) run their curves the same way as the quads around them (orientation)",
+        ),
     ),
     ("corpus", "camelhead.obj", Plan::Run),
     ("corpus", "fault_santa_monica_bay.obj", Plan::Run),

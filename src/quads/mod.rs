@@ -24,8 +24,10 @@
 //!    diamonds removed; cavities around irregular vertices replaced by
 //!    patterns with fewer of them; smoothing that never lowers a neighbourhood's worst scaled
 //!    Jacobian, every vertex projected back onto the input ([`projection`]);
-//!    [`pillow`]: a quad still inverted gets a layer of quads pillowed
-//!    around it and its region untangled.
+//!    [`untangle`]: the vertices of the quads below 0.5 moved to raise
+//!    their worst scaled Jacobian, before and after [`pillow`]: a quad
+//!    still inverted gets a layer of quads pillowed around it and its
+//!    region untangled.
 //! 6. [`order2`]: optional 9-node quadrangles, new nodes on the input.
 //! 7. [`quality`] and [`check`]: scaled Jacobians, valences, the valence
 //!    identity and conformity, asserted on every output; [`report`].
@@ -62,6 +64,7 @@ pub mod subdivision;
 pub mod surface_mesh;
 pub mod transition;
 pub mod triangulation;
+pub mod untangle;
 
 pub use error::QuadsError;
 pub use model::{QuadModel, quad_model};
@@ -175,6 +178,7 @@ pub fn build_quads(
         cavities: finished.cavities,
         smoothing: finished.smoothing,
         pillowing: finished.pillowing,
+        raising: finished.raising,
         high_order_seconds: finished.high_order_seconds,
         check_seconds: finished.check_seconds,
     });
@@ -189,6 +193,7 @@ struct Finished {
     cavities: cavity::CavityStats,
     smoothing: smooth::SmoothStats,
     pillowing: pillow::PillowStats,
+    raising: untangle::RaiseStats,
     high_order_seconds: f64,
     quality: QuadQuality,
     check_seconds: f64,
@@ -203,7 +208,8 @@ struct Input<'a> {
     projector: &'a projection::SurfaceProjector<'a>,
 }
 
-/// Cleanup, cavity remeshing, smoothing, pillowing and the optional
+/// Cleanup, cavity remeshing, smoothing, pillowing between two raisings of
+/// the worst quads, and the optional
 /// high-order nodes on the recombined `mesh`, then the checks every output
 /// must pass.
 fn finish(
@@ -217,7 +223,11 @@ fn finish(
     let cleanup = cleanup::clean_up(&mut mesh, projector);
     let cavities = cavity::remesh_cavities(&mut mesh, projector);
     let smoothing = smooth::smooth(&mut mesh, projector, opts.smoothing_iterations, &progress.sub(0.6, 0.95))?;
+    // Raised before pillowing, so that it pillows only what moves cannot
+    // mend, and after, to raise the layers it added.
+    let raised = untangle::raise_worst_quads(&mut mesh, projector);
     let pillowing = pillow::pillow_bad_quads(&mut mesh, projector);
+    let raising = raised.then(untangle::raise_worst_quads(&mut mesh, projector));
     let t = Instant::now();
     if opts.order == 2 {
         order2::add_high_order_nodes(&mut mesh, projector);
@@ -234,6 +244,7 @@ fn finish(
         cavities,
         smoothing,
         pillowing,
+        raising,
         high_order_seconds,
         quality,
         check_seconds,

@@ -26,14 +26,9 @@
 //!   boundary of `R` gains one quad (the 180° vertex gets two of about 90°).
 //! - The copies start halfway between their vertex and the mean centre of
 //!   its quads in `R`; then every vertex of `R` and its layer but the
-//!   corners is moved, one at a time, to the candidate point that most
-//!   raises the worst scaled Jacobian of all its quads (then lowers their
-//!   summed shortfall below [`ACCEPTED_SCALED_JACOBIAN`]), until no
-//!   candidate does: for a face vertex its neighbours' mean or a step in
-//!   one of 12 tangent directions at 4 radii, projected onto the face; for
-//!   a curve vertex a step along its curve, between its curve neighbours
-//!   (untangling by maximizing the minimum, the criterion quadqs'
-//!   `smoothThePool` guards).
+//!   corners is moved by [`super::untangle`] (max-min moves, one vertex at
+//!   a time) until no quad there is below [`ACCEPTED_SCALED_JACOBIAN`] or
+//!   no move raises the worst.
 //!
 //! The region grows from the cluster of bad quads (joined through shared
 //! vertices, per model face) ring by ring until its worst quad reaches
@@ -54,6 +49,7 @@ use super::projection::SurfaceProjector;
 use super::quality::is_inverted_or_degenerate;
 use super::smooth::quad_scaled_jacobian;
 use super::surface_mesh::{ModelEntity, QuadMesh};
+use super::untangle::{Goal, quads_per_vertex, untangle};
 use crate::geom::Vec3;
 
 /// Quads below this scaled Jacobian are repaired, and a repaired region is
@@ -76,15 +72,6 @@ const MAX_REGION_QUADS: usize = 400;
 /// Rounds over the remaining bad quads (a repair can leave a neighbour's
 /// cluster changed).
 const MAX_ROUNDS: usize = 3;
-
-/// Untangling sweeps over a region's free vertices at most.
-const MAX_SWEEPS: usize = 40;
-
-/// Tangent directions tried per radius.
-const N_DIRECTIONS: usize = 12;
-
-/// Step radii tried, as fractions of the mean edge length at the vertex.
-const RADII: [f64; 4] = [0.4, 0.2, 0.1, 0.05];
 
 /// Where a copy starts: this fraction of the way from its vertex to the
 /// mean centre of the vertex's quads in the region.
@@ -157,17 +144,6 @@ fn is_bad(mesh: &QuadMesh, projector: &SurfaceProjector, q: u32) -> bool {
 /// The inverted or degenerate quads of `mesh`, ascending.
 fn bad_quads(mesh: &QuadMesh, projector: &SurfaceProjector) -> Vec<u32> {
     (0..mesh.quads.len() as u32).filter(|&q| is_bad(mesh, projector, q)).collect()
-}
-
-/// Per vertex, the quads using it (ascending).
-fn quads_per_vertex(mesh: &QuadMesh) -> Vec<Vec<u32>> {
-    let mut per = vec![Vec::new(); mesh.vertices.len()];
-    for (q, quad) in mesh.quads.iter().enumerate() {
-        for &v in quad {
-            per[v as usize].push(q as u32);
-        }
-    }
-    per
 }
 
 /// The bad quads grouped into clusters: two bad quads of the same model
@@ -397,190 +373,7 @@ fn pillow_and_untangle(mesh: &mut QuadMesh, projector: &SurfaceProjector, region
         mesh.model_face_per_quad.push(face);
     }
     let touched: Vec<u32> = region.iter().copied().chain(first_layer as u32..mesh.quads.len() as u32).collect();
-    untangle(mesh, projector, &touched)
-}
-
-/// Moves the vertices of `quads` (all but corners; a curve vertex along
-/// its curve), each to the candidate that most lowers the shortfall of its
-/// quads below [`ACCEPTED_SCALED_JACOBIAN`], until a sweep lowers none;
-/// returns the worst scaled Jacobian of every quad at those vertices.
-fn untangle(mesh: &mut QuadMesh, projector: &SurfaceProjector, quads: &[u32]) -> f64 {
-    let all = quads_per_vertex(mesh);
-    let mut free: Vec<u32> = quads.iter().flat_map(|&q| mesh.quads[q as usize]).collect();
-    free.sort_unstable();
-    free.dedup();
-    free.retain(|&v| !matches!(mesh.vertices.entity[v as usize], ModelEntity::Corner(_)));
-    let curve_neighbours = curve_neighbours(mesh, &free);
-    for _ in 0..MAX_SWEEPS {
-        let mut moved = false;
-        for (i, &v) in free.iter().enumerate() {
-            moved |= move_to_best_candidate(mesh, projector, v, &all[v as usize], &curve_neighbours[i]);
-        }
-        if !moved {
-            break;
-        }
-    }
-    let mut around: Vec<u32> =
-        free.iter().flat_map(|&v| all[v as usize].iter().copied()).chain(quads.iter().copied()).collect();
-    around.sort_unstable();
-    around.dedup();
-    worst_of(mesh, projector, &around)
-}
-
-/// For each vertex of `vertices` on a curve, its neighbours along curve
-/// edges of that curve (empty for other vertices).
-fn curve_neighbours(mesh: &QuadMesh, vertices: &[u32]) -> Vec<Vec<u32>> {
-    vertices
-        .iter()
-        .map(|&v| {
-            let ModelEntity::Curve(c) = mesh.vertices.entity[v as usize] else { return Vec::new() };
-            mesh.curve_edges
-                .iter()
-                .filter(|&&(d, [a, b])| d == c && (a == v || b == v))
-                .map(|&(_, [a, b])| if a == v { b } else { a })
-                .collect()
-        })
-        .collect()
-}
-
-/// Worst scaled Jacobian of `quads` of `mesh`.
-fn worst_of(mesh: &QuadMesh, projector: &SurfaceProjector, quads: &[u32]) -> f64 {
-    quads
-        .iter()
-        .map(|&q| quad_scaled_jacobian(&mesh.vertices, projector.surface, &mesh.quads[q as usize]))
-        .fold(f64::INFINITY, f64::min)
-}
-
-/// How far `quads` fall short: the sum of their shortfalls below
-/// [`ACCEPTED_SCALED_JACOBIAN`] and their worst scaled Jacobian.
-fn shortfall(mesh: &QuadMesh, projector: &SurfaceProjector, quads: &[u32]) -> (f64, f64) {
-    let sj = quads.iter().map(|&q| quad_scaled_jacobian(&mesh.vertices, projector.surface, &mesh.quads[q as usize]));
-    sj.fold((0.0, f64::INFINITY), |(sum, worst), j| (sum + (ACCEPTED_SCALED_JACOBIAN - j).max(0.0), worst.min(j)))
-}
-
-/// Whether shortfall `a` is better than `b`: a larger worst, or the same
-/// worst and a smaller sum (so a move that mends one quad counts while
-/// another stays the worst). Worst first: on cow it left 39 bad quads where
-/// the sum first left 47 (`docs/decisions.md`).
-fn is_better(a: (f64, f64), b: (f64, f64)) -> bool {
-    a.1 > b.1 + 1e-9 || (a.1 >= b.1 - 1e-9 && a.0 < b.0 - 1e-12)
-}
-
-/// Candidate positions of vertex `v`: for a face vertex its neighbours'
-/// mean (full and half step) and steps in [`N_DIRECTIONS`] tangent
-/// directions at each of [`RADII`]; for a curve vertex steps along its
-/// curve at each of [`RADII`] both ways, kept strictly between its two
-/// curve neighbours. Each is projected onto the vertex's entity; a face
-/// candidate whose projection lands farther from it than half its step is
-/// left out (it fell onto another sheet of the face).
-fn candidates(
-    mesh: &QuadMesh,
-    projector: &SurfaceProjector,
-    v: u32,
-    quads: &[u32],
-    curve_neighbours: &[u32],
-) -> Vec<super::projection::Projection> {
-    let verts = &mesh.vertices;
-    let x = verts.positions[v as usize];
-    let mut neighbours: Vec<u32> = Vec::new();
-    for &q in quads {
-        let quad = mesh.quads[q as usize];
-        let k = quad.iter().position(|&w| w == v).unwrap_or(0);
-        neighbours.extend([quad[(k + 1) % 4], quad[(k + 3) % 4]]);
-    }
-    neighbours.sort_unstable();
-    neighbours.dedup();
-    let positions: Vec<Vec3> = neighbours.iter().map(|&w| verts.positions[w as usize]).collect();
-    let scale = positions.iter().map(|p| (p - x).norm()).sum::<f64>() / positions.len().max(1) as f64;
-    if scale <= 0.0 {
-        return Vec::new();
-    }
-    match verts.entity[v as usize] {
-        ModelEntity::Corner(_) => Vec::new(),
-        ModelEntity::Curve(c) => {
-            let arc = |w: u32| {
-                projector.curve_arc_length(c, &verts.positions[w as usize], Some(&verts.on_surface[w as usize]))
-            };
-            let (Some(s), [a, b]) = (arc(v), curve_neighbours) else { return Vec::new() };
-            let (Some(sa), Some(sb)) = (arc(*a), arc(*b)) else { return Vec::new() };
-            let (lo, hi) = (sa.min(sb), sa.max(sb));
-            // A curve wrapping through its start between the neighbours: not moved.
-            if !(lo < s && s < hi) || hi - lo > 0.5 * projector.curve_length(c) {
-                return Vec::new();
-            }
-            RADII
-                .iter()
-                .flat_map(|r| [s + r * scale, s - r * scale])
-                .filter(|t| lo < *t && *t < hi)
-                .filter_map(|t| projector.curve_point_at(c, t))
-                .collect()
-        }
-        ModelEntity::Face(face) => {
-            let n = projector.normal_at(&verts.on_surface[v as usize]);
-            let t1 = tangent(&n);
-            let t2 = n.cross(&t1);
-            let to_mean = positions.iter().sum::<Vec3>() / positions.len() as f64 - x;
-            let to_mean = to_mean - n * to_mean.dot(&n);
-            let mut steps: Vec<Vec3> = vec![to_mean, to_mean * 0.5];
-            for r in RADII {
-                for k in 0..N_DIRECTIONS {
-                    let a = std::f64::consts::TAU * k as f64 / N_DIRECTIONS as f64;
-                    steps.push((t1 * a.cos() + t2 * a.sin()) * (r * scale));
-                }
-            }
-            steps
-                .into_iter()
-                .filter(|d| d.norm() > 1e-6 * scale)
-                .filter_map(|d| {
-                    let p = projector.project_to_face(face, &(x + d))?;
-                    ((p.position - (x + d)).norm() <= 0.5 * d.norm()).then_some(p)
-                })
-                .collect()
-        }
-    }
-}
-
-/// Moves vertex `v` (whose quads are `quads`) to the best of its
-/// [`candidates`] when that is better by [`is_better`]; returns whether it
-/// moved.
-fn move_to_best_candidate(
-    mesh: &mut QuadMesh,
-    projector: &SurfaceProjector,
-    v: u32,
-    quads: &[u32],
-    curve_neighbours: &[u32],
-) -> bool {
-    let current = shortfall(mesh, projector, quads);
-    if current.0 == 0.0 {
-        return false;
-    }
-    let old = (mesh.vertices.positions[v as usize], mesh.vertices.on_surface[v as usize]);
-    let mut best = (current, None);
-    for p in candidates(mesh, projector, v, quads, curve_neighbours) {
-        mesh.vertices.positions[v as usize] = p.position;
-        mesh.vertices.on_surface[v as usize] = p.on_surface;
-        let s = shortfall(mesh, projector, quads);
-        if is_better(s, best.0) {
-            best = (s, Some(p));
-        }
-    }
-    match best.1 {
-        Some(p) => {
-            mesh.vertices.positions[v as usize] = p.position;
-            mesh.vertices.on_surface[v as usize] = p.on_surface;
-            true
-        }
-        None => {
-            (mesh.vertices.positions[v as usize], mesh.vertices.on_surface[v as usize]) = old;
-            false
-        }
-    }
-}
-
-/// A unit vector perpendicular to the unit vector `n`.
-fn tangent(n: &Vec3) -> Vec3 {
-    let axis = if n.x.abs() < 0.9 { Vec3::x() } else { Vec3::y() };
-    n.cross(&axis).normalize()
+    untangle(mesh, projector, &touched, Goal { threshold: ACCEPTED_SCALED_JACOBIAN, keep_chord_area: false })
 }
 
 #[cfg(test)]

@@ -144,6 +144,25 @@ impl<'a> SurfaceProjector<'a> {
         self.arc_length_per_curve_vertex.get(curve as usize).and_then(|s| s.last().copied()).unwrap_or(0.0)
     }
 
+    /// Area between curve `curve` from arc length `s0` to `s1` (`s0 ≤ s1`,
+    /// no wrap) and the chord joining its two ends: the fan of triangles
+    /// from the chord's start over the polyline's points between (exact for
+    /// a planar convex arc). It is what a quad edge cutting the curve there
+    /// takes from the face's area.
+    pub fn chord_area(&self, curve: u32, s0: f64, s1: f64) -> f64 {
+        let (Some(a), Some(b)) = (self.curve_point_at(curve, s0), self.curve_point_at(curve, s1)) else { return 0.0 };
+        let c = &self.model.features.curves[curve as usize];
+        let lengths = &self.arc_length_per_curve_vertex[curve as usize];
+        let inside = lengths.partition_point(|&l| l <= s0)..lengths.partition_point(|&l| l < s1);
+        let mut previous = a.position;
+        let mut area = 0.0;
+        for p in c.vertices[inside].iter().map(|v| self.surface.positions[v.idx()]).chain([b.position]) {
+            area += 0.5 * (previous - a.position).cross(&(p - a.position)).norm();
+            previous = p;
+        }
+        area
+    }
+
     /// The point of curve `curve` at arc length `s` from its start (clamped
     /// to the curve; wrapped for a closed curve).
     pub fn curve_point_at(&self, curve: u32, s: f64) -> Option<Projection> {
@@ -352,6 +371,36 @@ mod tests {
     use crate::quads::model::quad_model;
     use rand::rngs::StdRng;
     use rand::{Rng, SeedableRng};
+
+    /// On a regular `N`-gon of radius `r`, the area between `k` sides and
+    /// their chord is the circular segment of the polygon,
+    /// `r²/2 (k sin θ − sin kθ)` with `θ = 2π/N`; between points inside two
+    /// sides the fan is exact too, and a straight side cuts nothing.
+    #[test]
+    fn the_chord_area_of_a_regular_polygon_is_its_segment() {
+        let (r, n) = (1.5, 48);
+        let mesh = fixtures::cylinder(r, 2.0, n, 4);
+        let topo = Topology::new(&mesh);
+        let model = quad_model(&mesh, &topo, &detect_features(&mesh, &topo, 30.0));
+        let proj = SurfaceProjector::new(&mesh, &topo, &model);
+        let theta = std::f64::consts::TAU / n as f64;
+        let side = 2.0 * r * (theta / 2.0).sin();
+        assert!((proj.curve_length(0) - n as f64 * side).abs() < 1e-9);
+        for k in [1, 2, 5, 12] {
+            let expected = 0.5 * r * r * (k as f64 * theta.sin() - (k as f64 * theta).sin());
+            for start in [0.0, 3.0 * side] {
+                let got = proj.chord_area(0, start, start + k as f64 * side);
+                assert!((got - expected).abs() < 1e-9 * r * r, "k = {k}: {got} against {expected}");
+            }
+        }
+        // Within one side the curve is its own chord.
+        assert!(proj.chord_area(0, 0.2 * side, 0.7 * side) < 1e-12);
+        // From the middle of a side to the middle of the next: one triangle
+        // of half sides meeting at the polygon's angle π − θ.
+        let half = 0.5 * side;
+        let expected = 0.5 * half * half * theta.sin();
+        assert!((proj.chord_area(0, half, 3.0 * half) - expected).abs() < 1e-12);
+    }
 
     #[test]
     fn points_above_a_square_project_straight_down_onto_it() {

@@ -24,6 +24,7 @@ use super::recombine::RecombineStats;
 use super::smooth::SmoothStats;
 use super::surface_mesh::QuadMesh;
 use super::triangulation::TriangulationStats;
+use super::untangle::RaiseStats;
 
 /// Scaled Jacobian below which a quad is counted as poor (`n_below_0_3`).
 pub const POOR_SCALED_JACOBIAN: f64 = 0.3;
@@ -43,6 +44,8 @@ pub struct StepSeconds {
     pub smoothing: f64,
     /// Pillowing of the quads still inverted after smoothing.
     pub pillowing: f64,
+    /// Raising the worst quads (both passes).
+    pub raising: f64,
     /// Order-2 nodes (0 for order 1).
     pub high_order: f64,
     /// Quality measures and checks.
@@ -123,6 +126,8 @@ pub struct QuadsReport {
     pub smoothing: SmoothStats,
     /// The pillowing step's report (regions repaired after smoothing).
     pub pillowing: PillowStats,
+    /// Raising the worst quads, before and after pillowing.
+    pub raising: RaiseStats,
     /// Wall seconds per step.
     pub seconds: StepSeconds,
 }
@@ -151,6 +156,8 @@ pub struct ReportInputs<'a> {
     pub smoothing: SmoothStats,
     /// Pillowing.
     pub pillowing: PillowStats,
+    /// Raising the worst quads.
+    pub raising: RaiseStats,
     /// Wall seconds of the order-2 nodes (0 for order 1).
     pub high_order_seconds: f64,
     /// Wall seconds of the quality measures and checks.
@@ -179,6 +186,7 @@ impl QuadsReport {
             cavities: inputs.cavities.seconds,
             smoothing: inputs.smoothing.seconds,
             pillowing: inputs.pillowing.seconds,
+            raising: inputs.raising.seconds,
             high_order: inputs.high_order_seconds,
             check: inputs.check_seconds,
         };
@@ -217,6 +225,7 @@ impl QuadsReport {
             cavities: inputs.cavities,
             smoothing: inputs.smoothing,
             pillowing: inputs.pillowing,
+            raising: inputs.raising,
             seconds,
         }
     }
@@ -251,6 +260,7 @@ mod tests {
             cavities: CavityStats::default(),
             smoothing: SmoothStats::default(),
             pillowing: PillowStats::default(),
+            raising: RaiseStats::default(),
             high_order_seconds: 0.0,
             check_seconds: 0.25,
         })
