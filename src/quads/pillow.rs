@@ -45,11 +45,12 @@ use std::time::Instant;
 
 use serde::Serialize;
 
+use super::cleanup::quads_around_vertices;
 use super::projection::SurfaceProjector;
 use super::quality::is_inverted_or_degenerate;
 use super::smooth::quad_scaled_jacobian;
 use super::surface_mesh::{ModelEntity, QuadMesh};
-use super::untangle::{Goal, quads_per_vertex, untangle};
+use super::untangle::{Goal, untangle};
 use crate::geom::Vec3;
 
 /// Quads below this scaled Jacobian are repaired, and a repaired region is
@@ -150,7 +151,7 @@ fn bad_quads(mesh: &QuadMesh, projector: &SurfaceProjector) -> Vec<u32> {
 /// face sharing a vertex are in one cluster. Each cluster is ascending;
 /// clusters are ordered by their first quad.
 fn clusters(mesh: &QuadMesh, bad: &[u32]) -> Vec<Vec<u32>> {
-    let per_vertex = quads_per_vertex(mesh);
+    let per_vertex = quads_around_vertices(mesh);
     let index: BTreeMap<u32, usize> = bad.iter().enumerate().map(|(i, &q)| (q, i)).collect();
     let mut parent: Vec<usize> = (0..bad.len()).collect();
     fn root(parent: &mut [usize], mut i: usize) -> usize {
@@ -193,7 +194,7 @@ fn repair_cluster(mesh: &mut QuadMesh, projector: &SurfaceProjector, cluster: &[
     let mut best: Option<(usize, f64)> = None;
     let max_rings = if is_inverted_or_degenerate(before) { MAX_RINGS } else { MAX_RINGS_VALID };
     // Every attempt is undone before the next, so one index serves them all.
-    let per_vertex = quads_per_vertex(mesh);
+    let per_vertex = quads_around_vertices(mesh);
     for rings in 0..=max_rings {
         let Some(region) = region_around(mesh, &per_vertex, cluster, face, rings) else { break };
         let saved = Saved::of(mesh, &region);
@@ -219,7 +220,7 @@ fn repair_cluster(mesh: &mut QuadMesh, projector: &SurfaceProjector, cluster: &[
 /// [`MAX_REGION_QUADS`], or when it spans a curve with the face on both
 /// sides (a cut crease): pillowing rewrites the region's quads on copies
 /// of its boundary vertices, which would take a crease edge inside it off
-/// its curve. `per_vertex` is [`quads_per_vertex`] of `mesh`.
+/// its curve. `per_vertex` is [`quads_around_vertices`] of `mesh`.
 fn region_around(
     mesh: &QuadMesh,
     per_vertex: &[Vec<u32>],
@@ -471,7 +472,7 @@ mod tests {
             .collect();
         assert_eq!(beside.len(), 2);
         mesh.curve_edges.push((0, [a, b]));
-        let per_vertex = quads_per_vertex(&mesh);
+        let per_vertex = quads_around_vertices(&mesh);
         assert_eq!(region_around(&mesh, &per_vertex, &beside[..1], 0, 0), Some(beside[..1].to_vec()));
         assert_eq!(region_around(&mesh, &per_vertex, &beside[..1], 0, 1), None);
     }

@@ -29,6 +29,7 @@ use std::time::Instant;
 
 use serde::Serialize;
 
+use super::cleanup::quads_around_vertices;
 use super::projection::{Projection, SurfaceProjector};
 use super::smooth::quad_scaled_jacobian;
 use super::surface_mesh::{ModelEntity, QuadMesh};
@@ -123,23 +124,12 @@ pub fn raise_worst_quads(mesh: &mut QuadMesh, projector: &SurfaceProjector) -> R
     }
 }
 
-/// Per vertex, the quads using it (ascending).
-pub(super) fn quads_per_vertex(mesh: &QuadMesh) -> Vec<Vec<u32>> {
-    let mut per = vec![Vec::new(); mesh.vertices.len()];
-    for (q, quad) in mesh.quads.iter().enumerate() {
-        for &v in quad {
-            per[v as usize].push(q as u32);
-        }
-    }
-    per
-}
-
 /// Moves the vertices of `quads` (all but corners; a curve vertex along
 /// its curve), each to the candidate that most lowers the shortfall of its
 /// quads below `goal.threshold` ([`is_better`]), until a sweep lowers none;
 /// returns the worst scaled Jacobian of every quad at those vertices.
 pub(super) fn untangle(mesh: &mut QuadMesh, projector: &SurfaceProjector, quads: &[u32], goal: Goal) -> f64 {
-    let all = quads_per_vertex(mesh);
+    let all = quads_around_vertices(mesh);
     let mut free: Vec<u32> = quads.iter().flat_map(|&q| mesh.quads[q as usize]).collect();
     free.sort_unstable();
     free.dedup();
@@ -161,20 +151,22 @@ pub(super) fn untangle(mesh: &mut QuadMesh, projector: &SurfaceProjector, quads:
     worst_of(mesh, projector, &around)
 }
 
-/// For each vertex of `vertices` on a curve, its neighbours along curve
-/// edges of that curve (empty for other vertices).
+/// For each vertex of `vertices` (ascending) on a curve, its neighbours
+/// along curve edges of that curve (empty for other vertices), in the
+/// order of `mesh.curve_edges`: one pass over the curve edges.
 fn curve_neighbours(mesh: &QuadMesh, vertices: &[u32]) -> Vec<Vec<u32>> {
-    vertices
-        .iter()
-        .map(|&v| {
-            let ModelEntity::Curve(c) = mesh.vertices.entity[v as usize] else { return Vec::new() };
-            mesh.curve_edges
-                .iter()
-                .filter(|&&(d, [a, b])| d == c && (a == v || b == v))
-                .map(|&(_, [a, b])| if a == v { b } else { a })
-                .collect()
-        })
-        .collect()
+    let mut out = vec![Vec::new(); vertices.len()];
+    let on_curve = |v: u32, c: u32| matches!(mesh.vertices.entity[v as usize], ModelEntity::Curve(d) if d == c);
+    for &(c, [a, b]) in &mesh.curve_edges {
+        for (v, w) in [(a, b), (b, a)] {
+            if on_curve(v, c)
+                && let Ok(i) = vertices.binary_search(&v)
+            {
+                out[i].push(w);
+            }
+        }
+    }
+    out
 }
 
 /// Worst scaled Jacobian of `quads` of `mesh`.
@@ -388,7 +380,7 @@ mod tests {
         let ModelEntity::Curve(c) = mesh.vertices.entity[v as usize] else { panic!("vertex 3 is on the rim") };
         let t = std::f64::consts::TAU * 3.2 / n as f64;
         put(&mut mesh, &proj, v as usize, Vec3::new(r * t.cos(), r * t.sin(), 0.0));
-        let quads = quads_per_vertex(&mesh)[v as usize].clone();
+        let quads = quads_around_vertices(&mesh)[v as usize].clone();
         let neighbours = curve_neighbours(&mesh, &[v]).pop().unwrap();
         let arc = |p: &Vec3| proj.curve_arc_length(c, p, None).unwrap();
         let (sa, sb) = (
