@@ -19,6 +19,7 @@ pub mod degenerate;
 pub mod equal_keys;
 pub mod error;
 pub mod fixtures;
+pub mod folds;
 pub mod ids;
 pub mod orientation;
 pub mod repair;

@@ -20,7 +20,9 @@
 //! 6. drop vertices left unreferenced by 3–5 (same counter as step 1);
 //! 7. orient each edge-connected component consistently and closed ones
 //!    outward ([`super::orientation::orient_consistently`]);
-//! 8. count — but keep — non-manifold edges and vertices, components,
+//! 8. flip the long edge of every **folded cap**, a thin triangle lying
+//!    folded over its three neighbours ([`super::folds`]);
+//! 9. count — but keep — non-manifold edges and vertices, components,
 //!    boundary loops, χ and genus ([`super::summary::topology_summary`]).
 //!
 //! **Zero area.** A triangle has zero area when its height over its longest
@@ -41,6 +43,7 @@
 use super::components::{connected_components, nonmanifold_vertices};
 use super::degenerate::resolve_zero_area_triangles;
 use super::equal_keys::first_index_of_equal_key;
+use super::folds::unfold_caps;
 use super::orientation::orient_components;
 use super::summary::{TopologySummary, topology_summary_of};
 use super::weld::{weld_by_tolerance, weld_exact};
@@ -79,6 +82,10 @@ pub struct RepairReport {
     /// Long edges of zero-area "cap" triangles flipped (the cap and its
     /// neighbour replaced by two valid triangles).
     pub n_zero_area_edges_flipped: usize,
+    /// Long edges of "folded caps" flipped after orientation: thin triangles
+    /// facing against all three neighbours ([`super::folds`]; the cap and
+    /// its neighbour replaced by two triangles facing like the surface).
+    pub n_folded_caps_flipped: usize,
     /// Zero-area triangles that could be neither collapsed nor flipped (long
     /// edge on the boundary or non-manifold) and were removed.
     pub n_zero_area_triangles_removed: usize,
@@ -199,6 +206,15 @@ pub fn repair_triangle_soup(
     report.n_triangles_flipped = orientation.n_triangles_flipped;
     report.n_components_reversed_outward = orientation.n_components_reversed_outward;
     report.n_nonorientable_components = orientation.n_nonorientable_components;
+    report.n_folded_caps_flipped = unfold_caps(&mut mesh, &topo);
+    let nm_vertices = if report.n_folded_caps_flipped > 0 {
+        // The flips keep every face's edge-connected component (four outer
+        // edges for two triangles) but change the edges and the fans.
+        topo = Topology::new(&mesh);
+        nonmanifold_vertices(&mesh, &topo)
+    } else {
+        nm_vertices
+    };
 
     let summary = topology_summary_of(&mesh, &topo, &comps, &nm_vertices);
     report.n_nonmanifold_edges = summary.n_nonmanifold_edges;

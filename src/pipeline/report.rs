@@ -186,7 +186,9 @@ fn repair_line(r: &RepairReport) -> String {
     format!(
         "repair     welded {welded} vertices, removed {removed} triangles, flipped {} (and {} cap edges), \
          dropped {} unreferenced vertices",
-        r.n_triangles_flipped, r.n_zero_area_edges_flipped, r.n_unreferenced_vertices_dropped,
+        r.n_triangles_flipped,
+        r.n_zero_area_edges_flipped + r.n_folded_caps_flipped,
+        r.n_unreferenced_vertices_dropped,
     )
 }
 
