@@ -24,8 +24,6 @@ use std::process::Command;
 enum Plan {
     /// Run in CI.
     Run,
-    /// Known to fail today (issue 13): run by the ignored test.
-    Fails(&'static str),
     /// Run in CI by its own test, beside the others, for its run time.
     Long(&'static str),
 }
@@ -49,13 +47,7 @@ const INPUTS: &[(&str, &str, Plan)] = &[
     ("corpus", "plate_holes.stl", Plan::Run),
     ("corpus", "featuretype.stl", Plan::Run),
     ("corpus", "fandisk.obj", Plan::Run),
-    (
-        "corpus",
-        "cow.obj",
-        Plan::Fails(
-            "quads of the one-triangle faces 55, 60 and 61 (caps folded back over their neighbours) run their curves the same way as the quads around them (orientation)",
-        ),
-    ),
+    ("corpus", "cow.obj", Plan::Run),
     ("corpus", "camelhead.obj", Plan::Run),
     ("corpus", "fault_santa_monica_bay.obj", Plan::Run),
     ("corpus", "fault_opal_mound.obj", Plan::Run),
@@ -89,13 +81,15 @@ const NEVER_SUBDIVIDED: &[&str] = &[
 /// whole part at half the size asked (adis16480 went from 133,970 quads to
 /// 34,000), and bunny's, since the worst quads are raised by max-min
 /// moves, from 118,391 to 28,569. gmsh_lever splits its faces holding free
-/// triangles alone: the strips a narrower split needs do not join.
+/// triangles alone: the strips a narrower split needs do not join. cow
+/// splits the free triangles of 6 model faces alone.
 const SUBDIVISION_SCOPE_AT_MOST: &[(&str, &str)] = &[
     ("adis16480.stl", "triangles"),
     ("fault_ridgecrest_2019.obj", "triangles"),
     ("fault_santa_monica_bay.obj", "triangles"),
     ("gmsh_lever.stl", "faces"),
     ("bunny.obj", "triangles"),
+    ("cow.obj", "triangles"),
 ];
 
 /// Subdivision scopes, narrowest first.
@@ -252,12 +246,6 @@ fn every_input_file_is_listed() {
 #[test]
 fn the_quads_stage_passes_its_checks_and_gmsh_on_the_corpus() {
     check_inputs("quads_corpus", |p| *p == Plan::Run);
-}
-
-#[test]
-#[ignore = "known failures of issue 13, listed in INPUTS"]
-fn the_quads_stage_passes_on_the_known_failures() {
-    check_inputs("quads_corpus_failing", |p| matches!(p, Plan::Fails(_)));
 }
 
 #[test]

@@ -181,15 +181,24 @@ fn count_fans(mesh: &TriMesh, topo: &Topology, v: VertexId, parent: &mut Vec<u32
     if is_one_closed_fan(mesh, topo, v, faces) {
         return 1;
     }
+    union_fans(mesh, topo, v, faces, parent)
+}
+
+/// Representative of `x` in the union–find forest `parent` (path halving).
+fn root(parent: &mut [u32], mut x: u32) -> u32 {
+    while parent[x as usize] != x {
+        parent[x as usize] = parent[parent[x as usize] as usize];
+        x = parent[x as usize];
+    }
+    x
+}
+
+/// Joins in `parent` (one entry per triangle of `faces`, the sorted
+/// triangles around `v`) the triangles that share an edge at `v`; returns
+/// the number of fans.
+fn union_fans(mesh: &TriMesh, topo: &Topology, v: VertexId, faces: &[FaceId], parent: &mut Vec<u32>) -> usize {
     parent.clear();
     parent.extend(0..faces.len() as u32);
-    fn root(parent: &mut [u32], mut x: u32) -> u32 {
-        while parent[x as usize] != x {
-            parent[x as usize] = parent[parent[x as usize] as usize];
-            x = parent[x as usize];
-        }
-        x
-    }
     let mut n_fans = faces.len();
     for (i, &f) in faces.iter().enumerate() {
         let t = mesh.triangles[f.idx()];
@@ -209,6 +218,16 @@ fn count_fans(mesh: &TriMesh, topo: &Topology, v: VertexId, parent: &mut Vec<u32
         }
     }
     n_fans
+}
+
+/// The fan of each triangle around `v` (in the order of
+/// `topo.vertex_faces(v)`), as the index of one triangle of the fan: two
+/// triangles are in one fan when a path of triangles sharing edges at `v`
+/// joins them.
+pub fn fan_of_each_face(mesh: &TriMesh, topo: &Topology, v: VertexId) -> Vec<u32> {
+    let mut parent = Vec::new();
+    union_fans(mesh, topo, v, topo.vertex_faces(v), &mut parent);
+    (0..parent.len() as u32).map(|i| root(&mut parent, i)).collect()
 }
 
 #[cfg(test)]

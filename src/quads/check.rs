@@ -31,7 +31,7 @@ use super::model::QuadModel;
 use super::quality::{QuadQuality, is_inverted_or_degenerate};
 use super::surface_mesh::{ModelEntity, QuadMesh};
 use crate::geom::{Vec3, angle_between};
-use crate::mesh::components::{DisjointSets, connected_components};
+use crate::mesh::components::{DisjointSets, connected_components, fan_of_each_face, nonmanifold_vertices};
 use crate::mesh::{EdgeId, FaceId, Topology, TriMesh};
 
 /// Relative area mismatch every model face may have on top of the chordal allowance.
@@ -242,7 +242,9 @@ fn check_coverage(mesh: &QuadMesh, surface: &TriMesh, model: &QuadModel) -> Resu
 }
 
 /// Euler characteristic `V − E + F` of each edge-connected component of
-/// the input, and the component of each triangle.
+/// the input with every pinch split (a vertex counted once per fan of its
+/// triangles: the quads are a manifold, so two sheets that touch at a
+/// vertex get a vertex each), and the component of each triangle.
 fn input_euler_characteristics(surface: &TriMesh, topo: &Topology) -> (Vec<i64>, Vec<u32>) {
     let comps = connected_components(topo);
     let per_face = comps.component_per_face;
@@ -260,6 +262,19 @@ fn input_euler_characteristics(surface: &TriMesh, topo: &Topology) -> (Vec<i64>,
         for v in t {
             if seen.insert((v.0, per_face[f])) {
                 chi[per_face[f] as usize] += 1;
+            }
+        }
+    }
+    // A pinch: each fan of it beyond the first in its component.
+    for v in nonmanifold_vertices(surface, topo) {
+        let fans = fan_of_each_face(surface, topo, v);
+        let mut fans_in: HashSet<(u32, u32)> = HashSet::new();
+        let mut first_in: HashSet<u32> = HashSet::new();
+        for (f, fan) in topo.vertex_faces(v).iter().zip(fans) {
+            let c = per_face[f.idx()];
+            // The vertex loop above counted the first fan of each component.
+            if fans_in.insert((c, fan)) && !first_in.insert(c) {
+                chi[c as usize] += 1;
             }
         }
     }
@@ -547,5 +562,34 @@ mod tests {
         let mut chi = chi;
         chi.sort_unstable();
         assert_eq!(chi, vec![0, 1, 2]);
+    }
+
+    #[test]
+    fn a_pinch_is_counted_split() {
+        // A cube with two opposite corners made one vertex: one component,
+        // V − E + F = 1, but two fans at the pinch; the manifold the quads
+        // can be (the pinch split) is a sphere, χ = 2.
+        let mut m = fixtures::cube(2);
+        let corner = |m: &TriMesh, best: f64| {
+            (0..m.n_vertices()).find(|&v| m.positions[v].sum() == best).map(crate::mesh::VertexId::new)
+        };
+        let lo = m.positions.iter().map(|p| p.sum()).fold(f64::INFINITY, f64::min);
+        let hi = m.positions.iter().map(|p| p.sum()).fold(f64::NEG_INFINITY, f64::max);
+        let (a, b) = (corner(&m, lo).unwrap(), corner(&m, hi).unwrap());
+        m.triangles.iter_mut().flatten().filter(|v| **v == b).for_each(|v| *v = a);
+        let m = fixtures::compact(m);
+        let topo = Topology::new(&m);
+        assert_eq!(nonmanifold_vertices(&m, &topo).len(), 1);
+        assert_eq!(input_euler_characteristics(&m, &topo).0, vec![2]);
+        // Two cubes touching at a corner: two components, each a sphere.
+        let two = fixtures::union(&[
+            fixtures::cube(2),
+            fixtures::placed(&fixtures::cube(2), Vec3::repeat(1.0), Vec3::repeat(2.0)),
+        ]);
+        let (positions, triangles) = (two.positions.clone(), two.triangles.iter().map(|t| t.map(|v| v.0)).collect());
+        let (two, _) = crate::mesh::repair::repair_triangle_soup(positions, triangles, 0.0).unwrap();
+        let topo = Topology::new(&two);
+        assert_eq!(nonmanifold_vertices(&two, &topo).len(), 1);
+        assert_eq!(input_euler_characteristics(&two, &topo).0, vec![2, 2]);
     }
 }

@@ -38,6 +38,11 @@ use crate::geom::Vec3;
 /// Sweeps over the free vertices at most.
 const MAX_SWEEPS: usize = 40;
 
+/// Distance, as a fraction of the mean edge length at a vertex, within
+/// which a candidate counts as landing on another corner of its quads
+/// ([`lands_on_a_corner`]).
+const COINCIDENT: f64 = 1e-9;
+
 /// Tangent directions tried per radius.
 const N_DIRECTIONS: usize = 12;
 
@@ -199,7 +204,8 @@ fn is_better(a: (f64, f64), b: (f64, f64)) -> bool {
 /// curve neighbours (and, with `keep_chord_area`, cutting no more of the
 /// face's area with its two chords than where it is). Each is projected onto the vertex's entity; a face
 /// candidate whose projection lands farther from it than half its step is
-/// left out (it fell onto another sheet of the face).
+/// left out (it fell onto another sheet of the face), and so is one that
+/// lands on another corner of the vertex's quads ([`lands_on_a_corner`]).
 fn candidates(
     mesh: &QuadMesh,
     projector: &SurfaceProjector,
@@ -265,9 +271,23 @@ fn candidates(
                     let p = projector.project_to_face(face, &(x + d))?;
                     ((p.position - (x + d)).norm() <= 0.5 * d.norm()).then_some(p)
                 })
+                .filter(|p| !lands_on_a_corner(mesh, v, quads, &p.position, scale))
                 .collect()
         }
     }
+}
+
+/// Whether `x` is within [`COINCIDENT`] × `scale` of another corner of
+/// `v`'s `quads`. Such a move collapses a quad edge or diagonal, and a
+/// degenerate quad (scaled Jacobian 0) would count as better than an
+/// inverted one, though no later move of one vertex can open it again: on
+/// a sharp cone tip (cow's horns, 101° of total angle) every nearby
+/// candidate projects onto the tip, where a singular vertex sits.
+fn lands_on_a_corner(mesh: &QuadMesh, v: u32, quads: &[u32], x: &Vec3, scale: f64) -> bool {
+    quads
+        .iter()
+        .flat_map(|&q| mesh.quads[q as usize])
+        .any(|w| w != v && (mesh.vertices.positions[w as usize] - x).norm() <= COINCIDENT * scale)
 }
 
 /// Moves vertex `v` (whose quads are `quads`) to the best of its
@@ -359,6 +379,32 @@ mod tests {
         assert!(after > 0.9, "worst after raising: {after}");
         // The side vertex stayed on its side.
         assert!(mesh.vertices.positions[on_side].y.abs() < 1e-12);
+    }
+
+    /// On a unit grid whose vertex above `v` is moved to a third of a cell
+    /// from `v`, the step of 0.4 mean edge lengths along +y lands on it; no
+    /// candidate may (it would collapse the edge between them).
+    #[test]
+    fn no_candidate_lands_on_another_corner() {
+        let input = Input::new(fixtures::square(6));
+        let proj = input.projector();
+        let n = 6;
+        let h = 1.0 / n as f64;
+        let mut mesh = grid_mesh(&input, n, n, false, |i, j| Vec3::new(i as f64 * h, j as f64 * h, 0.0));
+        project_all(&mut mesh, &proj);
+        let v = 2 * (n + 1) + 3;
+        let above = v + n + 1;
+        put(&mut mesh, &proj, above, Vec3::new(3.0 * h, (2.0 + 1.0 / 3.0) * h, 0.0));
+        let quads: Vec<u32> = quads_around_vertices(&mesh).swap_remove(v);
+        let target = mesh.vertices.positions[above];
+        let onto = |p: &Projection| (p.position - target).norm() < 1e-6 * h;
+        // The step that lands there exists (the tangent frame's first axis is +y).
+        let x = mesh.vertices.positions[v];
+        let scale = (3.0 * h + h / 3.0) / 4.0;
+        assert!((x + Vec3::y() * RADII[0] * scale - target).norm() < 1e-12);
+        let found = candidates(&mesh, &proj, v as u32, &quads, &[], false);
+        assert!(found.len() > 40, "{} candidates", found.len());
+        assert!(!found.iter().any(onto), "a candidate lands on the vertex above");
     }
 
     /// A ring vertex of a cylinder's rim (a 48-gon) slid along the rim: with
