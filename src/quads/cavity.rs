@@ -33,14 +33,19 @@
 //! run: in the first, a pattern with a centre must be grown from the
 //! singular vertex it replaces and its relaxed centre must stay within an
 //! edge length of it; the second drops both rules. Each phase repeats
-//! passes until none applies ([`MAX_PASSES`] at most); everything runs in
-//! vertex order, so the result does not depend on the thread count.
+//! passes until none applies ([`MAX_PASSES`] at most); seeds are taken in
+//! vertex order, so the result does not depend on the thread count. The
+//! growths of a batch of seeds are first tried side by side against the
+//! mesh as it is; a growth that finds no pattern is kept for its seed
+//! unless a cavity replaced before that seed touched what it read
+//! ([`Cavities::batch`]), which gives the one-by-one result.
 
 use std::collections::{BTreeMap, BTreeSet};
 
 use foldhash::{HashMap, HashSet};
 use std::time::Instant;
 
+use rayon::prelude::*;
 use serde::Serialize;
 
 use super::cleanup::{compact, quads_around_vertices};
@@ -57,6 +62,10 @@ const MAX_RINGS: usize = 25;
 
 /// Passes over all irregular vertices, in each of the two phases.
 const MAX_PASSES: usize = 3;
+
+/// Seeds whose growth is tried side by side on the pool before they are
+/// taken in order ([`Cavities::batch`]).
+const SEEDS_PER_BATCH: u32 = 256;
 
 /// Relaxation rounds of a new pattern's inside vertices, each a projection
 /// onto the face after [`SWEEPS_PER_ROUND`] centroid sweeps.
@@ -92,6 +101,12 @@ pub struct CavityStats {
 /// Replaces cavities of `mesh` by patterns with fewer irregular vertices
 /// (to a fixpoint or [`MAX_PASSES`]), then compacts it.
 pub fn remesh_cavities(mesh: &mut QuadMesh, projector: &SurfaceProjector) -> CavityStats {
+    remesh_cavities_in_batches(mesh, projector, SEEDS_PER_BATCH)
+}
+
+/// [`remesh_cavities`] taking the seeds in batches of `seeds_per_batch`
+/// ([`Cavities::batch`]); the result does not depend on the batch size.
+fn remesh_cavities_in_batches(mesh: &mut QuadMesh, projector: &SurfaceProjector, seeds_per_batch: u32) -> CavityStats {
     let t = Instant::now();
     let mut work = Cavities::new(mesh, projector);
     let mut stats = CavityStats { irregular_before: work.n_irregular(), ..CavityStats::default() };
@@ -103,10 +118,9 @@ pub fn remesh_cavities(mesh: &mut QuadMesh, projector: &SurfaceProjector) -> Cav
             let mut changed = false;
             let mut v = 0;
             while v < work.quads_of.len() as u32 {
-                if work.is_irregular_seed(v) && work.worth_retrying(v) {
-                    changed |= work.grow_and_remesh(v, &mut stats);
-                }
-                v += 1;
+                let end = (v + seeds_per_batch.max(1)).min(work.quads_of.len() as u32);
+                changed |= work.batch(v..end, &mut stats);
+                v = end;
             }
             if !changed {
                 break;
@@ -136,8 +150,11 @@ struct Cavities<'m, 'p> {
     /// vertex placed at a singularity of the centre's index, grown from
     /// that vertex (so the cavity is centred on it).
     centre_needs_singularity: bool,
-    /// The vertex the current cavity grows from.
-    seed: u32,
+    /// Vertices whose quads a replaced cavity changed since the current
+    /// batch's growths were tried (its boundary and inside vertices).
+    dirty: Vec<bool>,
+    /// The vertices set in `dirty`.
+    dirty_list: Vec<u32>,
     /// Per vertex that failed as a seed in this phase: the number of
     /// cavities replaced before, and the centre and radius of a ball
     /// holding its largest cavity.
@@ -245,6 +262,17 @@ struct Pattern {
     centre: Option<u32>,
 }
 
+/// How a seed's growth ends, tried before the seeds ahead of it in its
+/// batch are taken ([`Cavities::speculate`]).
+enum Growth {
+    /// No ring had a pattern: every vertex the growth read (the largest
+    /// cavity's) and the radius of the ball around the seed holding them.
+    Failed { vertices: Vec<u32>, reach: f64 },
+    /// A ring had a pattern (or the seed's quads cross faces): grown again
+    /// in order.
+    Unknown,
+}
+
 impl<'m, 'p> Cavities<'m, 'p> {
     fn new(mesh: &'m mut QuadMesh, projector: &'p SurfaceProjector<'p>) -> Self {
         let n = mesh.vertices.len();
@@ -266,7 +294,8 @@ impl<'m, 'p> Cavities<'m, 'p> {
             singular,
             curve_edges,
             centre_needs_singularity: true,
-            seed: 0,
+            dirty: vec![false; n],
+            dirty_list: Vec::new(),
             failed: vec![None; n],
             commits: Vec::new(),
             scratch: QuadSet::default(),
@@ -297,11 +326,81 @@ impl<'m, 'p> Cavities<'m, 'p> {
         (0..self.quads_of.len() as u32).filter(|&v| self.is_irregular_seed(v)).count() as u64
     }
 
+    /// Takes the seeds of `range` in order, as one by one would
+    /// ([`Self::grow_and_remesh`] on each irregular seed worth retrying),
+    /// with the growths that find no pattern tried first side by side on
+    /// the pool against the mesh as it is ([`Self::speculate`]): a seed
+    /// whose growth found none, over vertices no replacement in this batch
+    /// has touched since, would grow the same and fail the same, so its
+    /// failure is recorded without growing it again. Every other seed is
+    /// grown in order. Returns whether a cavity was replaced; the result is
+    /// the one-by-one result, whatever the thread count.
+    fn batch(&mut self, range: std::ops::Range<u32>, stats: &mut CavityStats) -> bool {
+        let seeds: Vec<u32> = range.clone().filter(|&s| self.is_irregular_seed(s) && self.worth_retrying(s)).collect();
+        let (n_quads, n_vertices) = (self.mesh.quads.len(), self.mesh.vertices.len());
+        let this = &*self;
+        let guesses: Vec<Growth> = seeds
+            .par_iter()
+            .map_init(QuadSet::default, |set, &s| {
+                set.clear(n_quads, n_vertices);
+                this.speculate(set, s)
+            })
+            .collect();
+        for v in self.dirty_list.drain(..) {
+            self.dirty[v as usize] = false;
+        }
+        let mut guesses = seeds.into_iter().zip(guesses).peekable();
+        let mut changed = false;
+        for s in range {
+            let guess = guesses.next_if(|(g, _)| *g == s).map(|(_, growth)| growth);
+            if !(self.is_irregular_seed(s) && self.worth_retrying(s)) {
+                continue;
+            }
+            match guess {
+                Some(Growth::Failed { vertices, reach }) if !vertices.iter().any(|&v| self.dirty[v as usize]) => {
+                    let centre = self.mesh.vertices.positions[s as usize];
+                    self.failed[s as usize] = Some((self.commits.len(), centre, reach));
+                }
+                _ => changed |= self.grow_and_remesh(s, stats),
+            }
+        }
+        changed
+    }
+
+    /// How growing a cavity from `seed` in `cavity` (empty) would end, as
+    /// [`Self::grow_and_remesh_in`] grows it but without applying anything:
+    /// [`Growth::Failed`] when no ring has a pattern, else
+    /// [`Growth::Unknown`] (applying the pattern decides).
+    fn speculate(&self, cavity: &mut QuadSet, seed: u32) -> Growth {
+        let Some(face) = self.face_of(seed) else { return Growth::Unknown };
+        for &q in &self.quads_of[seed as usize] {
+            cavity.insert(q, self.mesh.quads[q as usize]);
+        }
+        if cavity.iter().any(|q| self.mesh.model_face_per_quad[q as usize] != face) {
+            return Growth::Unknown;
+        }
+        for _ in 0..MAX_RINGS {
+            if !self.make_convex(cavity, face) {
+                break;
+            }
+            if self.plan(cavity, face, seed).is_some() {
+                return Growth::Unknown;
+            }
+            if !self.add_ring(cavity, face) {
+                break;
+            }
+        }
+        let centre = self.mesh.vertices.positions[seed as usize];
+        Growth::Failed {
+            vertices: cavity.vertices.clone(),
+            reach: self.reach(cavity.vertices.iter().copied(), &centre),
+        }
+    }
+
     /// Grows cavities around `seed` ring by ring and replaces the first one
     /// whose pattern has fewer irregular vertices and a good shape.
     fn grow_and_remesh(&mut self, seed: u32, stats: &mut CavityStats) -> bool {
         let Some(face) = self.face_of(seed) else { return false };
-        self.seed = seed;
         let mut cavity = std::mem::take(&mut self.scratch);
         cavity.clear(self.mesh.quads.len(), self.mesh.vertices.len());
         let done = self.grow_and_remesh_in(&mut cavity, seed, face, stats);
@@ -321,7 +420,7 @@ impl<'m, 'p> Cavities<'m, 'p> {
             if !self.make_convex(cavity, face) {
                 break;
             }
-            if let Some(plan) = self.plan(cavity, face) {
+            if let Some(plan) = self.plan(cavity, face, seed) {
                 if self.apply(&plan) {
                     *stats.remeshed_by_corners.entry(plan.sides.len()).or_default() += 1;
                     stats.remeshed += 1;
@@ -446,7 +545,7 @@ impl<'m, 'p> Cavities<'m, 'p> {
 
     /// The pattern plan for convex `cavity`, when it is a disk whose
     /// pattern applies and has fewer irregular vertices inside.
-    fn plan(&self, cavity: &QuadSet, face: u32) -> Option<Plan> {
+    fn plan(&self, cavity: &QuadSet, face: u32, seed: u32) -> Option<Plan> {
         // A vertex in one quad of the cavity is a corner of its loop: no
         // pattern has other than 3 to 5, and counting them needs no loop.
         if !(3..=5).contains(&cavity.counts().filter(|&(_, k)| k == 1).count()) {
@@ -468,7 +567,7 @@ impl<'m, 'p> Cavities<'m, 'p> {
         let centre_index = 4 - n as i32;
         match singular.as_slice() {
             [] if n == 4 || !self.centre_needs_singularity => {}
-            [(v, i)] if *i == centre_index && (!self.centre_needs_singularity || *v == self.seed) => {}
+            [(v, i)] if *i == centre_index && (!self.centre_needs_singularity || *v == seed) => {}
             _ => return None,
         }
         let old = inside.iter().filter(|&&v| self.quads_of[v as usize].len() != 4).count();
@@ -607,6 +706,11 @@ impl<'m, 'p> Cavities<'m, 'p> {
         let reach = self.reach(boundary.iter().copied(), &centre);
         self.commits.push((centre, reach));
         let dead: HashSet<u32> = plan.quads.iter().copied().collect();
+        for &v in plan.sides.iter().flatten().chain(&plan.inside) {
+            if !std::mem::replace(&mut self.dirty[v as usize], true) {
+                self.dirty_list.push(v);
+            }
+        }
         for &q in &plan.quads {
             self.alive_quad[q as usize] = false;
         }
@@ -625,6 +729,7 @@ impl<'m, 'p> Cavities<'m, 'p> {
         self.quads_of.extend(std::iter::repeat_n(Vec::new(), n_new));
         self.singular.extend(std::iter::repeat_n(None, n_new));
         self.failed.extend(std::iter::repeat_n(None, n_new));
+        self.dirty.extend(std::iter::repeat_n(false, n_new));
         for quad in &pattern.quads {
             let q = self.mesh.quads.len() as u32;
             self.mesh.quads.push(*quad);
@@ -758,6 +863,43 @@ mod tests {
             }
         }
         k
+    }
+
+    /// Diamonds close enough that replacing one cavity changes the quads
+    /// other seeds' failed growths read: batches of 256 seeds (growths tried side
+    /// by side, then checked against what the replacements touched) give
+    /// the mesh that one seed at a time gives.
+    #[test]
+    fn batched_seeds_give_the_one_by_one_result() {
+        let n = 16;
+        let input = Input::new(fixtures::square(n));
+        let proj = input.projector();
+        let run = |seeds_per_batch: u32| {
+            let mut mesh = square_grid(&input, n);
+            project_all(&mut mesh, &proj);
+            let mut singular = Vec::new();
+            for (k, (i, j)) in [(4, 4), (4, 7), (7, 5), (11, 11), (11, 4), (8, 12), (6, 9)].into_iter().enumerate() {
+                let (up, _) = insert_diamond(&mut mesh, n, i, j);
+                // Some diamonds carry a singularity no 4-corner cavity can
+                // hold: their seeds' growths fail (the side-by-side case).
+                if k % 2 == 1 {
+                    singular.push((up, 1));
+                }
+            }
+            mesh.singular_vertices = singular;
+            project_all(&mut mesh, &proj);
+            let stats = remesh_cavities_in_batches(&mut mesh, &proj, seeds_per_batch);
+            (mesh, stats)
+        };
+        let (one, one_stats) = run(1);
+        let (batched, batched_stats) = run(256);
+        assert!(one_stats.remeshed >= 2 && one_stats.irregular_after < one_stats.irregular_before, "{one_stats:?}");
+        assert_eq!(
+            (batched_stats.remeshed, batched_stats.rejected_shape, batched_stats.irregular_after, batched_stats.passes),
+            (one_stats.remeshed, one_stats.rejected_shape, one_stats.irregular_after, one_stats.passes)
+        );
+        assert_eq!(batched.quads, one.quads);
+        assert_eq!(batched.vertices.positions, one.vertices.positions);
     }
 
     #[test]
