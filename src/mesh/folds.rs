@@ -5,7 +5,8 @@
 //! all three of its neighbours: `m` sits a little on the wrong side of
 //! `ab`, so the triangle lies folded flat over the surface around it. A
 //! consistently oriented scan can carry one (`cow.obj`, triangle 5465: height
-//! 0.028 of its long edge, normal at −0.99 to every neighbour). It is not a
+//! 0.028 of its long edge, normal at −0.99, −0.77 and −0.99 to its three
+//! neighbours'). It is not a
 //! feature: every atlas chart puts the fold's hole or triangle upside down,
 //! and a quad mesh across it would run its boundary the wrong way round.
 //!

@@ -21,8 +21,9 @@
 //!    a curved patch loses about that much area).
 //! 5. `valence-identity`: per connected component,
 //!    `Σ_closed (4 − val) + Σ_open (3 − val) = 4χ` with `χ` the Euler
-//!    characteristic of the corresponding input component, so the mesh has
-//!    the input's topology (see [`super::quality`] for the identity).
+//!    characteristic of the corresponding input component (a pinch, where
+//!    two fans of triangles meet at a vertex, counted split), so the mesh
+//!    has the input's topology (see [`super::quality`] for the identity).
 
 use std::collections::HashSet;
 
