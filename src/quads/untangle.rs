@@ -353,6 +353,16 @@ mod tests {
         mesh.vertices.on_surface[v] = p.on_surface;
     }
 
+    /// The 6 × 6 grid of cell `h` on `input` (the unit square), projected:
+    /// `(n, h, mesh)`.
+    fn unit_grid(input: &Input, proj: &SurfaceProjector) -> (usize, f64, QuadMesh) {
+        let n = 6;
+        let h = 1.0 / n as f64;
+        let mut mesh = grid_mesh(input, n, n, false, |i, j| Vec3::new(i as f64 * h, j as f64 * h, 0.0));
+        project_all(&mut mesh, proj);
+        (n, h, mesh)
+    }
+
     /// A unit grid's quads are squares (scaled Jacobian 1) with every
     /// vertex where it belongs: a vertex pulled 0.45 of a cell diagonally
     /// inside, and the vertex of the straight side below it slid 0.6 of a
@@ -362,10 +372,7 @@ mod tests {
     fn vertices_pulled_off_a_unit_grid_are_raised_back() {
         let input = Input::new(fixtures::square(6));
         let proj = input.projector();
-        let n = 6;
-        let h = 1.0 / n as f64;
-        let mut mesh = grid_mesh(&input, n, n, false, |i, j| Vec3::new(i as f64 * h, j as f64 * h, 0.0));
-        project_all(&mut mesh, &proj);
+        let (n, h, mut mesh) = unit_grid(&input, &proj);
         let inside = (n + 1) + 4;
         put(&mut mesh, &proj, inside, Vec3::new(3.55 * h, 1.45 * h, 0.0));
         let on_side = 4;
@@ -388,10 +395,7 @@ mod tests {
     fn no_candidate_lands_on_another_corner() {
         let input = Input::new(fixtures::square(6));
         let proj = input.projector();
-        let n = 6;
-        let h = 1.0 / n as f64;
-        let mut mesh = grid_mesh(&input, n, n, false, |i, j| Vec3::new(i as f64 * h, j as f64 * h, 0.0));
-        project_all(&mut mesh, &proj);
+        let (n, h, mut mesh) = unit_grid(&input, &proj);
         let v = 2 * (n + 1) + 3;
         let above = v + n + 1;
         put(&mut mesh, &proj, above, Vec3::new(3.0 * h, (2.0 + 1.0 / 3.0) * h, 0.0));
