@@ -3,14 +3,15 @@
 //! quads`): the stage asserts its own checks (0 triangles, no inverted or
 //! degenerate quad, coverage, valence identity, conformity; a failed check
 //! is an error), so a run that succeeds has passed them; this test adds the
-//! report's counts and an independent judge, Gmsh, which must open
-//! `quads.msh` and rate every quad with `minSICN > 0`. And the output bytes
-//! do not depend on the thread count (`RAYON_NUM_THREADS` = 1 and 2).
+//! report's counts and independent readers: Gmsh must open `quads.msh` and
+//! rate every quad with `minSICN > 0`, meshio must read every quad of
+//! `quads.msh` and `quads.vtu`, and VTK every quad of `quads.vtu`. And the
+//! output bytes do not depend on the thread count (`RAYON_NUM_THREADS` = 1
+//! and 2).
 //!
-//! Every file of both folders is listed in [`INPUTS`]: run (the long ones by
-//! a test of their own, which runs beside the others), or left out as a
-//! known failure of issue 13, run by the ignored test. A file
-//! added to a folder without an entry fails [`every_input_file_is_listed`].
+//! Every file of both folders is listed in [`INPUTS`] and run (the long ones
+//! by a test of their own, which runs beside the others). A file added to a
+//! folder without an entry fails [`every_input_file_is_listed`].
 
 mod common;
 
@@ -128,13 +129,25 @@ fn run_quads_with(input: &Path, out: &Path, threads: usize, extra: &[&str]) -> R
     serde_json::from_slice(&o.stdout).map_err(|e| format!("bad report JSON: {e}"))
 }
 
-/// Gmsh opens each file and rates its 2D elements: per file the count
-/// rated and the smallest `minSICN`.
-const GMSH_SICN: &str = r#"
+/// The three readers a user opens the artifacts with, on each output
+/// directory: Gmsh opens `quads.msh` and rates its 2D elements (the count
+/// rated and the smallest `minSICN`); meshio reads `quads.msh` and
+/// `quads.vtu` (their quad cells counted); VTK's XML reader, what ParaView
+/// uses, reads `quads.vtu` (its cell count, error code and anything it
+/// logged, into the log file given first).
+const READERS: &str = r#"
+from vtkmodules.vtkIOXML import vtkXMLUnstructuredGridReader
+from vtkmodules.vtkCommonCore import vtkFileOutputWindow, vtkOutputWindow
+import os
+log = sys.argv[1]
+w = vtkFileOutputWindow(); w.SetFileName(log); vtkOutputWindow.SetInstance(w)
 gmsh.initialize(["-nt", "1"])
 gmsh.option.setNumber("General.Terminal", 0)
+def quads(path):
+    return sum(len(c.data) for c in meshio.read(path).cells if c.type in ("quad", "quad9"))
 out = {}
-for msh in sys.argv[1:]:
+for d in sys.argv[2:]:
+    msh, vtu = os.path.join(d, "quads.msh"), os.path.join(d, "quads.vtu")
     gmsh.clear()
     gmsh.open(msh)
     sicn = []
@@ -142,8 +155,12 @@ for msh in sys.argv[1:]:
         _, tags, _ = gmsh.model.mesh.getElements(2, s)
         for tg in tags:
             sicn.extend(gmsh.model.mesh.getElementQualities(list(tg), "minSICN"))
-    out[msh] = {"n_rated": len(sicn), "min_sicn": min(sicn) if sicn else None}
+    r = vtkXMLUnstructuredGridReader(); r.SetFileName(vtu); r.Update()
+    out[d] = {"n_rated": len(sicn), "min_sicn": min(sicn) if sicn else None,
+              "meshio_msh_quads": quads(msh), "meshio_vtu_quads": quads(vtu),
+              "vtk_error": r.GetErrorCode(), "vtk_cells": r.GetOutput().GetNumberOfCells()}
 gmsh.finalize()
+out["vtk_log"] = open(log).read() if os.path.exists(log) else ""
 print(json.dumps(out))
 "#;
 
@@ -175,7 +192,9 @@ fn check_inputs(suite: &str, keep: impl Fn(&Plan) -> bool) {
 /// Runs each of `runs` and asserts its report's counts (quads, no
 /// triangle, no inverted quad, no subdivision on [`NEVER_SUBDIVIDED`], its
 /// scope within [`SUBDIVISION_SCOPE_AT_MOST`]) and
-/// Gmsh's rating of its `quads.msh` (every quad rated, min SICN > 0); all
+/// the readers' view of its artifacts ([`READERS`]: Gmsh rates every quad
+/// of `quads.msh` with min SICN > 0; meshio finds every quad in
+/// `quads.msh` and `quads.vtu`, VTK in `quads.vtu` without an error); all
 /// failures are collected, then reported together.
 fn check_runs(suite: &str, runs: Vec<QuadsRun>) {
     let mut failures = Vec::new();
@@ -206,19 +225,32 @@ fn check_runs(suite: &str, runs: Vec<QuadsRun>) {
                 {
                     failures.push(format!("{}: subdivision scope {scope}, wider than {widest}", run.label));
                 }
-                rated.push((&run.label, out.join("quads.msh"), n_quads));
+                rated.push((&run.label, out, n_quads));
             }
         }
     }
     if !rated.is_empty() {
-        let paths: Vec<&str> = rated.iter().map(|(_, p, _)| path_str(p)).collect();
-        let r = python(GMSH_SICN, &paths);
-        for (label, path, n_quads) in &rated {
-            let g = &r[path_str(path)];
+        let log = scratch(suite, "vtk_log").join("vtk.log");
+        let mut args = vec![path_str(&log)];
+        args.extend(rated.iter().map(|(_, dir, _)| path_str(dir)));
+        let r = python(READERS, &args);
+        for (label, dir, n_quads) in &rated {
+            let g = &r[path_str(dir)];
             let min = g["min_sicn"].as_f64();
             if g["n_rated"].as_u64() != Some(*n_quads) || !min.is_some_and(|m| m > 0.0) {
                 failures.push(format!("{label}: Gmsh rated {} of {n_quads} quads, min SICN {:?}", g["n_rated"], min));
             }
+            for key in ["meshio_msh_quads", "meshio_vtu_quads", "vtk_cells"] {
+                if g[key].as_u64() != Some(*n_quads) {
+                    failures.push(format!("{label}: {key} {} of {n_quads}", g[key]));
+                }
+            }
+            if g["vtk_error"] != 0 {
+                failures.push(format!("{label}: VTK error code {}", g["vtk_error"]));
+            }
+        }
+        if r["vtk_log"] != "" {
+            failures.push(format!("VTK logged: {}", r["vtk_log"]));
         }
     }
     assert!(failures.is_empty(), "{}", failures.join("\n"));
