@@ -34,8 +34,10 @@ Prints one JSON object per file, one line each:
     sum of the unit normals of the quad and of its neighbours across edges
     that are on no curve and not sharp (an angle between the two normals in
     (SHARP, 180 - SHARP) deg, SHARP = --sharp-angle, default 40 like the
-    atlas); a quad folded over its neighbours (normal at about 180 deg)
-    thus counts as inverted (sj <= 0),
+    atlas, or beyond 180 - SHARP at a knife-edge ridge, where each normal
+    points away from the other element: the two sides of a sharp tip); a
+    quad folded over its neighbours (normal at about 180 deg, pointing
+    towards them) thus counts as inverted (sj <= 0),
   sicn_min, sicn_mean, inverted_sicn: Gmsh's own minSICN quality
     (getElementQualities), inverted when <= 0,
   max_angle_deviation_deg: largest |corner angle - 90| over the quads,
@@ -47,6 +49,11 @@ import sys
 
 import gmsh
 import numpy as np
+
+# How far (sine of the angle) each side of a knife-edge ridge must point
+# away from the other: below it, two elements with opposite normals are a
+# fold.
+RIDGE = 0.05
 
 
 def load(path):
@@ -121,12 +128,37 @@ def element_normals(xyz, quads, tris):
     return n / np.where(length > 0, length, 1.0)[:, None]
 
 
+def element_centroids(xyz, quads, tris):
+    """Centroids of the quads' corners, then of the triangles'."""
+    return np.concatenate([xyz[quads].mean(axis=1), xyz[tris].mean(axis=1)])
+
+
+def knife_edge(xyz, centroids, normals, lo, hi, e1, e2):
+    """Whether each edge lo-hi between elements e1 and e2 whose normals are
+    about opposite is a knife-edge ridge (the two sides of a sharp tip)
+    rather than one element folded over the other. With d1, d2 the unit
+    directions from the edge into each element, across the edge, each
+    element's normal points away from the other element at a ridge
+    (n1 . d2 < 0 and n2 . d1 < 0), while a folded element's normal points
+    towards it (or lies flat: n . d = 0)."""
+    t = xyz[hi] - xyz[lo]
+    t /= np.where(np.linalg.norm(t, axis=1) > 0, np.linalg.norm(t, axis=1), 1.0)[:, None]
+
+    def into(e):
+        d = centroids[e] - xyz[lo]
+        d -= t * np.einsum("ij,ij->i", d, t)[:, None]
+        return d / np.where(np.linalg.norm(d, axis=1) > 0, np.linalg.norm(d, axis=1), 1.0)[:, None]
+
+    d1, d2 = into(e1), into(e2)
+    return (np.einsum("ij,ij->i", normals[e1], d2) < -RIDGE) & (np.einsum("ij,ij->i", normals[e2], d1) < -RIDGE)
+
+
 class Edges:
     """The unique edges of the 2D elements: endpoints, use counts, the two
     elements of each edge used twice, whether it is on a curve and whether
     it is sharp."""
 
-    def __init__(self, xyz, corners, normals, curve_edges, sharp_deg):
+    def __init__(self, xyz, corners, normals, centroids, curve_edges, sharp_deg):
         nv = len(xyz)
         keys = edge_keys(corners[:, 1], corners[:, 2], nv)
         self.keys, self.inverse, self.uses = np.unique(keys, return_inverse=True, return_counts=True)
@@ -142,9 +174,11 @@ class Edges:
         self.e2 = corners[order[first[self.twice] + 1], 0]
         cos = np.einsum("ij,ij->i", normals[self.e1], normals[self.e2])
         lim = math.cos(math.radians(sharp_deg))
-        # a fold (normals about opposite) is an inverted element, not a feature
+        # a fold (normals about opposite) is an inverted element, not a
+        # feature, unless it is a knife-edge ridge (a sharp tip's two sides)
         self.sharp = np.zeros(len(self.keys), dtype=bool)
-        self.sharp[self.twice] = np.abs(cos) < lim
+        ridge = knife_edge(xyz, centroids, normals, self.lo[self.twice], self.hi[self.twice], self.e1, self.e2)
+        self.sharp[self.twice] = (np.abs(cos) < lim) | ((cos <= -lim) & ridge)
         # edges that separate sectors: open, non-manifold, or sharp curves
         self.cut = (self.uses != 2) | (self.curve & self.sharp)
 
@@ -284,7 +318,7 @@ def metrics(path, sharp_deg):
     xyz, quads, tris = m["xyz"], m["quads"], m["tris"]
     corners = corner_table(xyz, quads, tris)
     normals = element_normals(xyz, quads, tris)
-    edges = Edges(xyz, corners, normals, m["curve_edges"], sharp_deg)
+    edges = Edges(xyz, corners, normals, element_centroids(xyz, quads, tris), m["curve_edges"], sharp_deg)
     out.update(topology(xyz, corners, len(quads) + len(tris), edges))
     out.update(quality(xyz, quads, m["quad_tags"], normals, edges))
     return out

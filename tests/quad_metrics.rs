@@ -314,6 +314,28 @@ fn a_quad_folded_over_its_neighbours_is_inverted_against_the_surface() {
     assert_eq!(int(v, "n_sharp_edges"), 0, "a fold is not a feature: {v}");
 }
 
+/// Two quads wrapped around a sharp tip (cow's horns end this way), each
+/// with a corner there and sharing both of the tip's edges: their normals
+/// are about opposite, like a fold's, but each points away from the
+/// other, so the edges are a knife-edge ridge and each quad is measured
+/// against its own normal. Gmsh's SICN rates both valid; averaging the two
+/// normals as across a fold rated them inverted.
+#[test]
+fn two_quads_around_a_sharp_tip_are_not_a_fold() {
+    let mut m = Msh::default();
+    let tip = m.node([0.0, 0.0, 0.0]);
+    let (p1, p2) = (m.node([1.0, 0.3, 0.0]), m.node([1.0, -0.3, 0.0]));
+    let (a, b) = (m.node([1.2, 0.0, 0.3]), m.node([1.2, 0.0, -0.3]));
+    m.quad([tip, p2, a, p1]);
+    m.quad([tip, p1, b, p2]);
+    let r = metrics("tip", &[("tip.msh", m.msh2())]);
+    let v = &r["tip.msh"];
+    assert_eq!(int(v, "inverted_sicn"), 0, "{v}");
+    assert_eq!(int(v, "inverted_sj"), 0, "{v}");
+    assert!(num(v, "sj_min") > 0.3, "{v}");
+    assert_eq!(int(v, "n_sharp_edges"), 2, "{v}");
+}
+
 /// The quad disk has exactly the 4 valence-3 interior vertices of the
 /// grid's corners, a regular boundary, index sum 4χ = 4, and no inverted
 /// quad. Splitting one ring quad into two triangles leaves them counted as
