@@ -3,7 +3,9 @@
 //!
 //! A feature curve gets `n ≈ L / size` segments (at least one per piece,
 //! closed curves at least 3), its count chosen by [`super::parity`] so every
-//! model face has an even number of boundary segments. Points are placed at
+//! model face has an even number of boundary segments; the pieces of
+//! opposite sides of four-sided faces get one count ([`super::sides`]) and
+//! are left out of the parity fix. Points are placed at
 //! equal 3D arc length inside each piece of the curve; pieces end at the
 //! atlas corners on the curve (where a seam meets it: that vertex must exist
 //! on both patches' boundaries), at sharp turns of the polyline (a square
@@ -20,6 +22,7 @@ use super::error::QuadsError;
 use super::model::QuadModel;
 use super::parity::{ParityCurve, ParityStats, fix_parity};
 use super::patch_chart::surface_position;
+use super::sides::{Piece, SideStats, match_sides};
 use super::size_map::SizeMap;
 use super::surface_mesh::{CurveEdge, ModelEntity, SurfacePoint, SurfaceVertices};
 use crate::atlas::Atlas;
@@ -84,6 +87,8 @@ pub struct BoundaryMesh {
     pub segments_per_curve: Vec<usize>,
     /// How the parity was reached.
     pub parity: ParityStats,
+    /// How the opposite sides of four-sided faces were made equal.
+    pub sides: SideStats,
 }
 
 /// Arc length at every vertex of the chain `verts`, measured in the size
@@ -281,6 +286,87 @@ fn distribute(n: usize, lengths: &[f64], mins: &[usize]) -> Vec<usize> {
     counts
 }
 
+/// The count each piece of each curve must have so that four-sided faces
+/// get equal opposite sides ([`super::sides`]), per curve, per piece, and
+/// what the matching did.
+fn matched_sides(
+    surface: &TriMesh,
+    topo: &Topology,
+    model: &QuadModel,
+    pieces: &[CurvePieces],
+    size: f64,
+) -> (Vec<Vec<Option<usize>>>, SideStats) {
+    let flat: Vec<Piece> = pieces
+        .iter()
+        .enumerate()
+        .flat_map(|(c, (ends, lengths, mins, _))| {
+            let verts = &model.features.curves[c].vertices;
+            ends.windows(2).zip(lengths).zip(mins).map(move |((w, &length), &min_segments)| Piece {
+                curve: c as u32,
+                ends: [verts[w[0]], verts[w[1]]],
+                target: length / size,
+                min_segments,
+            })
+        })
+        .collect();
+    let (counts, stats) = match_sides(surface, topo, model, &flat);
+    let mut left = counts.into_iter();
+    let per_curve = pieces.iter().map(|(_, lengths, _, _)| left.by_ref().take(lengths.len()).collect()).collect();
+    (per_curve, stats)
+}
+
+/// The segment count of every piece of every curve, and whether the
+/// matched sides were kept: a curve with a matched piece gets the matched
+/// counts there and its other pieces' share of the rest, and is not
+/// bumped by the parity fix (`parity` is its outcome). Should the faces
+/// stay odd that way, the matching is dropped and the curves counted and
+/// fixed as without it.
+fn piece_counts(
+    curves: &mut [ParityCurve],
+    n_faces: usize,
+    pieces: &[CurvePieces],
+    matched: &[Vec<Option<usize>>],
+    parity: &mut ParityStats,
+) -> (Vec<Vec<usize>>, bool) {
+    let free = curves.to_vec();
+    for ((curve, (_, lengths, mins, _)), fixed) in curves.iter_mut().zip(pieces).zip(matched) {
+        if fixed.iter().all(Option::is_none) {
+            continue;
+        }
+        let rest: f64 = lengths.iter().zip(fixed).filter(|(_, f)| f.is_none()).map(|(l, _)| l).sum();
+        let rest_min: usize = mins.iter().zip(fixed).filter(|(_, f)| f.is_none()).map(|(m, _)| m).sum();
+        let rest_count = ((rest / lengths.iter().sum::<f64>() * curve.target).round() as usize).max(rest_min);
+        curve.segments = fixed.iter().flatten().sum::<usize>() + rest_count;
+        curve.fixed = true;
+    }
+    *parity = fix_parity(curves, n_faces);
+    let kept = parity.odd_faces_after == 0;
+    if !kept {
+        curves.clone_from_slice(&free);
+        *parity = fix_parity(curves, n_faces);
+    }
+    let counts = curves
+        .iter()
+        .zip(pieces)
+        .zip(matched)
+        .map(|((curve, (_, lengths, mins, _)), fixed)| {
+            if !kept || !curve.fixed {
+                return distribute(curve.segments, lengths, mins);
+            }
+            let free: Vec<usize> = (0..lengths.len()).filter(|&k| fixed[k].is_none()).collect();
+            let rest = curve.segments - fixed.iter().flatten().sum::<usize>();
+            let shares = distribute(
+                rest,
+                &free.iter().map(|&k| lengths[k]).collect::<Vec<_>>(),
+                &free.iter().map(|&k| mins[k]).collect::<Vec<_>>(),
+            );
+            let mut shares = shares.into_iter();
+            fixed.iter().map(|f| f.unwrap_or_else(|| shares.next().unwrap_or(1))).collect()
+        })
+        .collect();
+    (counts, kept)
+}
+
 /// One feature curve cut into pieces: the vertex index of each piece end,
 /// the length of each piece, its minimum segment count, and the arc length
 /// at each vertex of the curve.
@@ -361,17 +447,20 @@ pub fn discretize_boundaries(
             segments: (target.round() as usize).max(min_segments),
             min_segments,
             two_sided,
+            fixed: false,
         });
         pieces.push((ends, lengths, mins, s));
     }
-    b.out.parity = fix_parity(&mut parity_curves, model.n_faces);
+    let (matched, sides) = matched_sides(surface, topo, model, &pieces, size);
+    let counts_per_curve = piece_counts(&mut parity_curves, model.n_faces, &pieces, &matched, &mut b.out.parity);
+    b.out.sides = if counts_per_curve.1 { sides } else { SideStats::default() };
 
     // Feature curve points, in curve order.
-    for (c, (curve, (ends, lengths, mins, s))) in curves.iter().zip(&pieces).enumerate() {
+    for (c, (curve, (ends, lengths, _, s))) in curves.iter().zip(&pieces).enumerate() {
         let verts = &curve.vertices;
         let n = parity_curves[c].segments;
         b.out.segments_per_curve.push(n);
-        let counts = distribute(n, lengths, mins);
+        let counts = &counts_per_curve.0[c];
         let corner = model.corner_of(verts[0]).ok_or_else(|| {
             b.error(0, format!("feature curve {c} starts at vertex {} which is not a model corner", verts[0].0))
         })?;

@@ -8,7 +8,8 @@
 //!    of it, and curve vertices a chord would visibly cut are corners.
 //! 2. [`curves`]: every feature curve discretized once at the target size,
 //!    shared by the faces it bounds, segment counts chosen so every model
-//!    face has an even number of boundary segments (parity).
+//!    face has an even number of boundary segments (parity) and, by
+//!    [`sides`], so four-sided faces get as many on opposite sides.
 //! 3. [`triangulation`]: in each atlas patch's `(u, v)` plane, points placed
 //!    frontally along the cross at the target size, a vertex at every
 //!    crossfield singularity, and a constrained Delaunay triangulation
@@ -56,6 +57,7 @@ pub mod projection;
 pub mod quality;
 pub mod recombine;
 pub mod report;
+pub mod sides;
 pub mod size_map;
 pub mod slivers;
 pub mod smooth;

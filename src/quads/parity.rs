@@ -53,6 +53,9 @@ pub struct ParityCurve {
     /// True when the same face lies on both sides (counts twice: no effect
     /// on parity).
     pub two_sided: bool,
+    /// True when its count is fixed (its pieces are matched sides,
+    /// [`super::sides`]): never bumped.
+    pub fixed: bool,
 }
 
 /// Per node (model faces, then outside), the parity of its boundary segment count.
@@ -94,7 +97,7 @@ pub fn fix_parity(curves: &mut [ParityCurve], n_faces: usize) -> ParityStats {
     let mut edges: Vec<(f64, u32, u32, usize)> = curves
         .iter()
         .enumerate()
-        .filter(|(_, c)| !c.two_sided && (c.faces.len() == 1 || c.faces.len() == 2))
+        .filter(|(_, c)| !c.two_sided && !c.fixed && (c.faces.len() == 1 || c.faces.len() == 2))
         .map(|(i, c)| {
             let b = if c.faces.len() == 2 { c.faces[1] } else { outside };
             (best_bump(c).1, c.faces[0], b, i)
@@ -167,6 +170,7 @@ mod tests {
             segments: (target.round() as usize).max(1),
             min_segments: 1,
             two_sided: false,
+            fixed: false,
         }
     }
 

@@ -30,6 +30,7 @@ use super::insertion::{ChartPoint, insert_points};
 use super::model::QuadModel;
 use super::parity::ParityStats;
 use super::patch_chart::{PatchChart, surface_position};
+use super::sides::SideStats;
 use super::size_map::{SizeMap, conformal_size_map, curvature_bounded_sizes};
 use super::slivers::{SliverStats, retriangulate_slivers};
 use super::surface_mesh::{ModelEntity, SurfacePoint, SurfaceTriangulation};
@@ -54,6 +55,8 @@ pub struct TriangulationStats {
     pub segments_per_curve: Vec<usize>,
     /// How every model face got an even number of boundary segments.
     pub parity: ParityStats,
+    /// How the four-sided model faces got equal opposite sides.
+    pub sides: SideStats,
     /// Singularities that got a vertex.
     pub n_singular_vertices: usize,
     /// Singularities on a patch boundary (seam or curve), left without one.
@@ -608,6 +611,7 @@ fn merge(surface: &TriMesh, boundary: BoundaryMesh, outs: Vec<PatchOut>) -> (Sur
         n_boundary_vertices: nb,
         segments_per_curve: boundary.segments_per_curve,
         parity: boundary.parity,
+        sides: boundary.sides,
         ..Default::default()
     };
     for out in outs {
@@ -761,18 +765,32 @@ mod tests {
 
     #[test]
     fn an_odd_curve_is_bumped_and_every_face_has_an_even_triangle_count() {
-        // Square: one closed curve of length 4 (kept corners), 4 / (1/2.8) = 11.2 → 11 segments, odd.
-        let s = setup(fixtures::square(12));
-        let (tri, stats) = run(&s, 1.0 / 2.8);
+        // L-shape: one closed curve of length 8 (six kept corners),
+        // 8 / (1/1.4) = 11.2 → 11 segments, odd.
+        let s = setup(fixtures::l_shape(6));
+        let (tri, stats) = run(&s, 1.0 / 1.4);
         check(&s, &tri);
+        assert_eq!(stats.sides.n_four_sided_faces, 0);
         assert_eq!(stats.parity.odd_faces_before, 1);
         assert_eq!(stats.parity.odd_faces_after, 0);
         assert_eq!(stats.parity.bumps.len(), 1);
         assert_eq!((stats.parity.bumps[0].before, stats.parity.bumps[0].after), (11, 12));
-        // Its four corners are vertices.
-        for c in [[0.0, 0.0], [1.0, 0.0], [1.0, 1.0], [0.0, 1.0]] {
+        // Its six corners are vertices.
+        for c in [[0.0, 0.0], [2.0, 0.0], [2.0, 1.0], [1.0, 1.0], [1.0, 2.0], [0.0, 2.0]] {
             assert!(tri.vertices.positions.iter().any(|p| (p.x - c[0]).abs() + (p.y - c[1]).abs() < 1e-12));
         }
+    }
+
+    #[test]
+    fn a_square_gets_equal_sides_and_needs_no_parity_bump() {
+        // Four sides of 2.8 target segments each: 3 on each, 12 in all, even.
+        let s = setup(fixtures::square(12));
+        let (tri, stats) = run(&s, 1.0 / 2.8);
+        check(&s, &tri);
+        assert_eq!((stats.sides.n_four_sided_faces, stats.sides.n_classes, stats.sides.n_pieces), (1, 2, 4));
+        assert_eq!(stats.segments_per_curve, vec![12]);
+        assert_eq!(stats.parity.odd_faces_before, 0);
+        assert!(stats.parity.bumps.is_empty());
     }
 
     #[test]
