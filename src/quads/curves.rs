@@ -452,15 +452,16 @@ pub fn discretize_boundaries(
         pieces.push((ends, lengths, mins, s));
     }
     let (matched, sides) = matched_sides(surface, topo, model, &pieces, size);
-    let counts_per_curve = piece_counts(&mut parity_curves, model.n_faces, &pieces, &matched, &mut b.out.parity);
-    b.out.sides = if counts_per_curve.1 { sides } else { SideStats::default() };
+    let (counts_per_curve, matched_kept) =
+        piece_counts(&mut parity_curves, model.n_faces, &pieces, &matched, &mut b.out.parity);
+    b.out.sides = SideStats { dropped_for_parity: !matched_kept && sides.n_classes > 0, ..sides };
 
     // Feature curve points, in curve order.
     for (c, (curve, (ends, lengths, _, s))) in curves.iter().zip(&pieces).enumerate() {
         let verts = &curve.vertices;
         let n = parity_curves[c].segments;
         b.out.segments_per_curve.push(n);
-        let counts = &counts_per_curve.0[c];
+        let counts = &counts_per_curve[c];
         let corner = model.corner_of(verts[0]).ok_or_else(|| {
             b.error(0, format!("feature curve {c} starts at vertex {} which is not a model corner", verts[0].0))
         })?;

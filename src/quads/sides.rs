@@ -21,9 +21,12 @@
 //! class gets the rounded mean of its members' target counts, at least
 //! each member's minimum. A class whose targets differ by more than
 //! [`MAX_TARGET_RATIO`] is left alone: the quads across it would stretch
-//! more than a pair of irregular vertices costs. A face with equal
-//! opposite sides has an even boundary count, so the matched pieces need
-//! no parity bump.
+//! more than a pair of irregular vertices costs. So is a class that would
+//! move the count of a curve that also bounds a face that does not
+//! qualify by more than [`MAX_CHANGE_BESIDE_OTHER_FACES`] from that
+//! curve's own: the other face would pay for it with irregular vertices of
+//! its own. A face with equal opposite sides has an even boundary count,
+//! so the matched pieces need no parity bump.
 
 use serde::Serialize;
 
@@ -39,7 +42,7 @@ const MAX_CORNER_DEG: f64 = 135.0;
 const MAX_CHANGE_BESIDE_OTHER_FACES: usize = 1;
 
 /// Largest ratio of target counts within a class of pieces made equal.
-pub const MAX_TARGET_RATIO: f64 = 1.2;
+const MAX_TARGET_RATIO: f64 = 1.2;
 
 /// One piece of a feature curve, as the side matching sees it.
 #[derive(Debug, Clone, PartialEq)]
@@ -57,7 +60,7 @@ pub struct Piece {
 /// What the side matching did (for the report).
 #[derive(Debug, Clone, Default, PartialEq, Serialize)]
 pub struct SideStats {
-    /// Model faces with four sides whose opposite sides were made equal.
+    /// Model faces that qualify: four sides, each corner filled by one quad.
     pub n_four_sided_faces: usize,
     /// Classes of pieces given one count.
     pub n_classes: usize,
@@ -68,6 +71,10 @@ pub struct SideStats {
     /// Classes left alone because they would move the count of a curve
     /// that also bounds a face without matched sides by more than one.
     pub n_classes_beside_other_faces: usize,
+    /// True when the classes were dropped because a face stayed odd with
+    /// them (its other curves could not fix its parity); the curves were
+    /// then counted one by one.
+    pub dropped_for_parity: bool,
 }
 
 /// The segment count each of `pieces` must have (`None`: free) so that the
@@ -98,7 +105,9 @@ pub fn match_sides(
             continue;
         }
         let Some(pairs) = opposite_pairs(pieces, list) else { continue };
-        let corners: Vec<VertexId> = list.iter().map(|&i| pieces[i].ends[0]).collect();
+        let mut corners: Vec<VertexId> = list.iter().flat_map(|&i| pieces[i].ends).collect();
+        corners.sort_unstable();
+        corners.dedup();
         let one_quad = |v: &VertexId| corner_angle(surface, topo, model, f as u32, *v) < MAX_CORNER_DEG.to_radians();
         if !corners.iter().all(one_quad) {
             continue;
