@@ -119,13 +119,17 @@ def edge_keys(a, b, n):
     return lo * n + hi
 
 
+def unit(v):
+    """Rows of `v` scaled to unit length (zero rows left zero)."""
+    length = np.linalg.norm(v, axis=1)
+    return v / np.where(length > 0, length, 1.0)[:, None]
+
+
 def element_normals(xyz, quads, tris):
     """Unit normals of the quads (cross product of their diagonals) then of
     the triangles."""
     p, t = xyz[quads], xyz[tris]
-    n = np.concatenate([np.cross(p[:, 2] - p[:, 0], p[:, 3] - p[:, 1]), np.cross(t[:, 1] - t[:, 0], t[:, 2] - t[:, 0])])
-    length = np.linalg.norm(n, axis=1)
-    return n / np.where(length > 0, length, 1.0)[:, None]
+    return unit(np.concatenate([np.cross(p[:, 2] - p[:, 0], p[:, 3] - p[:, 1]), np.cross(t[:, 1] - t[:, 0], t[:, 2] - t[:, 0])]))
 
 
 def element_centroids(xyz, quads, tris):
@@ -141,13 +145,11 @@ def knife_edge(xyz, centroids, normals, lo, hi, e1, e2):
     element's normal points away from the other element at a ridge
     (n1 . d2 < 0 and n2 . d1 < 0), while a folded element's normal points
     towards it (or lies flat: n . d = 0)."""
-    t = xyz[hi] - xyz[lo]
-    t /= np.where(np.linalg.norm(t, axis=1) > 0, np.linalg.norm(t, axis=1), 1.0)[:, None]
+    t = unit(xyz[hi] - xyz[lo])
 
     def into(e):
         d = centroids[e] - xyz[lo]
-        d -= t * np.einsum("ij,ij->i", d, t)[:, None]
-        return d / np.where(np.linalg.norm(d, axis=1) > 0, np.linalg.norm(d, axis=1), 1.0)[:, None]
+        return unit(d - t * np.einsum("ij,ij->i", d, t)[:, None])
 
     d1, d2 = into(e1), into(e2)
     return (np.einsum("ij,ij->i", normals[e1], d2) < -RIDGE) & (np.einsum("ij,ij->i", normals[e2], d1) < -RIDGE)

@@ -31,8 +31,9 @@
 use serde::Serialize;
 
 use super::model::QuadModel;
+use crate::geom::corner_angles;
 use crate::mesh::components::DisjointSets;
-use crate::mesh::{FaceId, Topology, TriMesh, VertexId};
+use crate::mesh::{Topology, TriMesh, VertexId};
 
 /// Largest interior angle, in degrees, of a corner one quad fills.
 const MAX_CORNER_DEG: f64 = 135.0;
@@ -179,17 +180,13 @@ fn corner_angle(surface: &TriMesh, topo: &Topology, model: &QuadModel, face: u32
     topo.vertex_faces(v)
         .iter()
         .filter(|t| model.face_per_triangle[t.idx()] == face)
-        .map(|&t| angle_at(surface, t, v))
+        .filter_map(|&t| {
+            let tri = surface.triangles[t.idx()];
+            let k = tri.iter().position(|&w| w == v)?;
+            let [a, b, c] = surface.corners(t);
+            Some(corner_angles(&a, &b, &c)[k])
+        })
         .sum()
-}
-
-/// The angle of triangle `t` at its vertex `v`.
-fn angle_at(surface: &TriMesh, t: FaceId, v: VertexId) -> f64 {
-    let tri = surface.triangles[t.idx()];
-    let Some(k) = tri.iter().position(|&w| w == v) else { return 0.0 };
-    let p = surface.position(v);
-    let (a, b) = (surface.position(tri[(k + 1) % 3]) - p, surface.position(tri[(k + 2) % 3]) - p);
-    crate::geom::angle_between(&a, &b)
 }
 
 #[cfg(test)]
