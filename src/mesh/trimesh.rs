@@ -67,6 +67,14 @@ impl TriMesh {
         if l > 0.0 { n / l } else { Vec3::zeros() }
     }
 
+    /// Unit normal of every triangle ([`TriMesh::face_normal`]), in triangle
+    /// order: for loops that read the normals under many points again and
+    /// again (one load instead of three corners and a square root).
+    pub fn face_normals(&self) -> Vec<Vec3> {
+        use rayon::prelude::*;
+        (0..self.n_faces()).into_par_iter().map(|f| self.face_normal(FaceId::new(f))).collect()
+    }
+
     /// Sum of triangle areas.
     pub fn area(&self) -> f64 {
         (0..self.n_faces()).map(|f| self.face_area(FaceId::new(f))).sum()

@@ -142,6 +142,11 @@ struct Cavities<'m, 'p> {
     alive_vertex: Vec<bool>,
     /// Alive quads around each vertex.
     quads_of: Vec<Vec<u32>>,
+    /// Per quad, the quad across each of its edges ([`Self::across`] of
+    /// edge `k`, from corner `k` to `k + 1`; `u32::MAX` for none), kept
+    /// for alive quads: a cavity's boundary reads every edge of every
+    /// member at every ring, and the lists behind `across` are scattered.
+    across_edge: Vec<[u32; 4]>,
     /// Index (quarter turns) of each vertex placed at a singularity.
     singular: Vec<Option<i32>>,
     /// Edges on feature curves, as sorted vertex pairs.
@@ -285,12 +290,13 @@ impl<'m, 'p> Cavities<'m, 'p> {
         }
         let curve_edges = mesh.curve_edges.iter().map(|(_, [a, b])| [*a.min(b), *a.max(b)]).collect();
         let alive_quad = vec![true; mesh.quads.len()];
-        Self {
+        let mut work = Self {
             mesh,
             projector,
             alive_quad,
             alive_vertex: vec![true; n],
             quads_of,
+            across_edge: Vec::new(),
             singular,
             curve_edges,
             centre_needs_singularity: true,
@@ -299,7 +305,10 @@ impl<'m, 'p> Cavities<'m, 'p> {
             failed: vec![None; n],
             commits: Vec::new(),
             scratch: QuadSet::default(),
-        }
+        };
+        let this = &work;
+        work.across_edge = (0..this.mesh.quads.len() as u32).into_par_iter().map(|q| this.across_edges_of(q)).collect();
+        work
     }
 
     /// Ideal quad count of face vertex `v`: 4, or `4 − index` at a singularity.
@@ -514,6 +523,12 @@ impl<'m, 'p> Cavities<'m, 'p> {
         self.quads_of[a as usize].iter().copied().find(|&o| o != q && self.mesh.quads[o as usize].contains(&b))
     }
 
+    /// [`Self::across`] of each edge of quad `q` (`u32::MAX` for none).
+    fn across_edges_of(&self, q: u32) -> [u32; 4] {
+        let quad = self.mesh.quads[q as usize];
+        std::array::from_fn(|k| self.across(q, quad[k], quad[(k + 1) % 4]).unwrap_or(u32::MAX))
+    }
+
     /// The boundary loop of `cavity` with the cavity on its left (quad
     /// order), or `None` unless the cavity is a disk with one simple loop.
     fn boundary_loop(&self, cavity: &QuadSet) -> Option<Vec<u32>> {
@@ -523,7 +538,8 @@ impl<'m, 'p> Cavities<'m, 'p> {
             let quad = self.mesh.quads[q as usize];
             for k in 0..4 {
                 let (a, b) = (quad[k], quad[(k + 1) % 4]);
-                let inner = self.across(q, a, b).is_some_and(|o| cavity.contains(o));
+                let o = self.across_edge[q as usize][k];
+                let inner = o != u32::MAX && cavity.contains(o);
                 if inner {
                     if self.curve_edges.contains(&[a.min(b), a.max(b)]) {
                         return None;
@@ -643,7 +659,7 @@ impl<'m, 'p> Cavities<'m, 'p> {
     fn worst_scaled_jacobian(&self, quads: &[[u32; 4]]) -> f64 {
         quads
             .iter()
-            .map(|q| quad_scaled_jacobian(&self.mesh.vertices, self.projector.surface, q))
+            .map(|q| quad_scaled_jacobian(&self.mesh.vertices, self.projector.face_normals(), q))
             .fold(f64::INFINITY, f64::min)
     }
 
@@ -742,6 +758,16 @@ impl<'m, 'p> Cavities<'m, 'p> {
         if let (Some((_, index)), Some(c)) = (plan.singular, pattern.centre) {
             self.singular[c as usize] = Some(index);
             self.mesh.singular_vertices.push((c, index));
+        }
+        // `across` changed only for quads at a vertex whose list changed:
+        // the loop's vertices and the new ones (every new quad has one).
+        self.across_edge.resize(self.mesh.quads.len(), [u32::MAX; 4]);
+        let changed = plan.sides.iter().flatten().copied().chain(pattern.base..pattern.base + n_new as u32);
+        for v in changed {
+            for i in 0..self.quads_of[v as usize].len() {
+                let q = self.quads_of[v as usize][i];
+                self.across_edge[q as usize] = self.across_edges_of(q);
+            }
         }
     }
 }
@@ -902,15 +928,45 @@ mod tests {
         assert_eq!(batched.vertices.positions, one.vertices.positions);
     }
 
+    /// The `n × n` grid of the unit square with a diamond inserted at each
+    /// of `at`, projected onto the input.
+    fn grid_with_diamonds(input: &Input, proj: &SurfaceProjector, n: usize, at: &[(usize, usize)]) -> QuadMesh {
+        let mut mesh = square_grid(input, n);
+        project_all(&mut mesh, proj);
+        for &(i, j) in at {
+            insert_diamond(&mut mesh, n, i, j);
+        }
+        project_all(&mut mesh, proj);
+        mesh
+    }
+
+    /// The quads across each edge, kept through replacements, are what
+    /// the vertices' quad lists give afresh.
+    #[test]
+    fn the_quads_across_edges_stay_current_through_replacements() {
+        let n = 16;
+        let input = Input::new(fixtures::square(n));
+        let proj = input.projector();
+        let mut mesh = grid_with_diamonds(&input, &proj, n, &[(4, 4), (4, 7), (7, 5), (11, 11)]);
+        let mut work = Cavities::new(&mut mesh, &proj);
+        work.centre_needs_singularity = false;
+        let mut stats = CavityStats::default();
+        let n_vertices = work.quads_of.len() as u32;
+        assert!(work.batch(0..n_vertices, &mut stats));
+        assert!(stats.remeshed >= 2, "{stats:?}");
+        for q in 0..work.mesh.quads.len() as u32 {
+            if work.alive_quad[q as usize] {
+                assert_eq!(work.across_edge[q as usize], work.across_edges_of(q), "quad {q}");
+            }
+        }
+    }
+
     #[test]
     fn a_diamond_in_a_grid_is_remeshed_back_to_the_regular_grid() {
         let n = 8;
         let input = Input::new(fixtures::square(n));
         let proj = input.projector();
-        let mut mesh = square_grid(&input, n);
-        project_all(&mut mesh, &proj);
-        insert_diamond(&mut mesh, n, 4, 4);
-        project_all(&mut mesh, &proj);
+        let mut mesh = grid_with_diamonds(&input, &proj, n, &[(4, 4)]);
         let stats = remesh_cavities(&mut mesh, &proj);
         assert_eq!((stats.irregular_before, stats.irregular_after), (4, 0), "{stats:?}");
         assert_eq!(stats.remeshed_by_corners.get(&4), Some(&1));
@@ -918,7 +974,8 @@ mod tests {
         // With 8 segments on each side and no irregular vertex, the only
         // quad mesh of the square is the 8 × 8 grid.
         assert_eq!((mesh.quads.len(), mesh.vertices.len()), (64, 81));
-        assert!(mesh.quads.iter().all(|q| quad_scaled_jacobian(&mesh.vertices, &input.surface, q) > 0.9));
+        let normals = input.surface.face_normals();
+        assert!(mesh.quads.iter().all(|q| quad_scaled_jacobian(&mesh.vertices, &normals, q) > 0.9));
     }
 
     #[test]

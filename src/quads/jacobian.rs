@@ -12,7 +12,6 @@
 
 use super::surface_mesh::{ModelEntity, SurfacePoint, SurfaceVertices};
 use crate::geom::Vec3;
-use crate::mesh::TriMesh;
 
 /// Scaled Jacobian of each corner of the quad with corners `p`, measured
 /// against the unit normal `n` (0 for a corner with a zero-length edge).
@@ -57,13 +56,37 @@ pub fn max_angle_deviation_deg(p: &[Vec3; 4]) -> f64 {
 /// which Gmsh rates inverted when the quad is written from that corner.
 /// Every rotation is checked, so no order the quad is written in fails.
 pub fn surface_quad_scaled_jacobian(p: &[Vec3; 4], n: &Vec3) -> f64 {
+    surface_quad_scaled_jacobian_until(p, n, f64::NEG_INFINITY)
+}
+
+/// [`surface_quad_scaled_jacobian`], stopping as soon as a normal puts the
+/// quad below `floor`: the value returned is then only known to be below
+/// `floor` (a guard that rejects anything below it needs no more). The
+/// corners' cross products and edge-length products are formed once for
+/// the six normals, the same arithmetic as [`scaled_jacobian`].
+pub fn surface_quad_scaled_jacobian_until(p: &[Vec3; 4], n: &Vec3, floor: f64) -> f64 {
+    let corner = |i: usize| {
+        let a = p[(i + 1) % 4] - p[i];
+        let b = p[(i + 3) % 4] - p[i];
+        (a.cross(&b), a.norm() * b.norm())
+    };
+    let corners = [corner(0), corner(1), corner(2), corner(3)];
+    let against = |unit: &Vec3| {
+        corners.iter().map(|(c, d)| if *d > 0.0 { c.dot(unit) / d } else { 0.0 }).fold(f64::INFINITY, f64::min)
+    };
+    let mut worst = against(n);
+    if worst < floor {
+        return worst;
+    }
     let own = (p[2] - p[0]).cross(&(p[3] - p[1]));
-    let mut worst = scaled_jacobian(p, n);
     for normal in std::iter::once(own).chain((0..4).map(|i| (p[(i + 1) % 4] - p[i]).cross(&(p[(i + 2) % 4] - p[i])))) {
         worst = match normal.try_normalize(0.0) {
-            Some(unit) => worst.min(scaled_jacobian(p, &unit)),
+            Some(unit) => worst.min(against(&unit)),
             None => worst.min(0.0),
         };
+        if worst < floor {
+            return worst;
+        }
     }
     worst
 }
@@ -73,8 +96,10 @@ pub fn surface_quad_scaled_jacobian(p: &[Vec3; 4], n: &Vec3) -> f64 {
 /// a model face (a curve or corner vertex sits on an edge shared with
 /// another face, whose normal may point elsewhere); the quad's own
 /// (Newell) normal when all four corners lie on curves or corners.
-pub fn quad_reference_normal(vertices: &SurfaceVertices, surface: &TriMesh, quad: &[u32; 4]) -> Vec3 {
-    reference_normal_of_corners(surface, &quad.map(|v| corner_of(vertices, v)))
+/// `normals` holds the unit normal of every input triangle
+/// ([`crate::mesh::TriMesh::face_normals`]).
+pub fn quad_reference_normal(vertices: &SurfaceVertices, normals: &[Vec3], quad: &[u32; 4]) -> Vec3 {
+    reference_normal_of_corners(normals, &quad.map(|v| corner_of(vertices, v)))
 }
 
 /// What the reference normal reads of a quad corner: its model entity,
@@ -89,17 +114,23 @@ pub fn corner_of(vertices: &SurfaceVertices, v: u32) -> QuadCorner {
 /// Scaled Jacobian of a quad given by its corners' data against the input
 /// surface's normal under it ([`surface_quad_scaled_jacobian`] against
 /// [`reference_normal_of_corners`]).
-pub fn scaled_jacobian_of_corners(surface: &TriMesh, corners: &[QuadCorner; 4]) -> f64 {
-    surface_quad_scaled_jacobian(&corners.map(|c| c.2), &reference_normal_of_corners(surface, corners))
+pub fn scaled_jacobian_of_corners(normals: &[Vec3], corners: &[QuadCorner; 4]) -> f64 {
+    scaled_jacobian_of_corners_until(normals, corners, f64::NEG_INFINITY)
+}
+
+/// [`scaled_jacobian_of_corners`], stopping below `floor` as
+/// [`surface_quad_scaled_jacobian_until`] does.
+pub fn scaled_jacobian_of_corners_until(normals: &[Vec3], corners: &[QuadCorner; 4], floor: f64) -> f64 {
+    surface_quad_scaled_jacobian_until(&corners.map(|c| c.2), &reference_normal_of_corners(normals, corners), floor)
 }
 
 /// [`quad_reference_normal`] of a quad given by its corners' data (so that
 /// a corner can be evaluated at a trial position without moving it).
-pub fn reference_normal_of_corners(surface: &TriMesh, corners: &[QuadCorner; 4]) -> Vec3 {
+pub fn reference_normal_of_corners(normals: &[Vec3], corners: &[QuadCorner; 4]) -> Vec3 {
     let mut n = Vec3::zeros();
     for (entity, on_surface, _) in corners {
         if matches!(entity, ModelEntity::Face(_)) {
-            n += surface.face_normal(on_surface.face);
+            n += normals[on_surface.face.idx()];
         }
     }
     if n.norm_squared() == 0.0 {
@@ -117,6 +148,31 @@ mod tests {
 
     fn square() -> [Vec3; 4] {
         [Vec3::new(0.0, 0.0, 0.0), Vec3::new(1.0, 0.0, 0.0), Vec3::new(1.0, 1.0, 0.0), Vec3::new(0.0, 1.0, 0.0)]
+    }
+
+    /// Stopped early only below the floor, exact otherwise.
+    #[test]
+    fn the_early_stop_is_exact_above_the_floor_and_below_it_when_stopped() {
+        let mut seed = 7u64;
+        let mut r = || {
+            seed = seed.wrapping_mul(6364136223846793005).wrapping_add(1442695040888963407);
+            (seed >> 11) as f64 / (1u64 << 53) as f64 - 0.5
+        };
+        let n = Vec3::new(0.1, -0.2, 1.0).normalize();
+        for _ in 0..2000 {
+            let mut p = square();
+            for c in &mut p {
+                *c += Vec3::new(r(), r(), 0.3 * r());
+            }
+            let exact = surface_quad_scaled_jacobian(&p, &n);
+            let floor = 2.0 * r();
+            let stopped = surface_quad_scaled_jacobian_until(&p, &n, floor);
+            if exact >= floor {
+                assert_eq!(stopped, exact);
+            } else {
+                assert!(stopped < floor && stopped >= exact);
+            }
+        }
     }
 
     #[test]

@@ -125,7 +125,7 @@ mod tests {
         for (q, quad) in mesh.quads.iter().enumerate() {
             let right = (q / 12) * 12 + (q % 12 + 1) % 12;
             assert_eq!(ho[q][1], ho[right][3], "quad {q} and {right} share edge 12 / 30");
-            let n = quad_reference_normal(&mesh.vertices, &input.surface, quad);
+            let n = quad_reference_normal(&mesh.vertices, &input.surface.face_normals(), quad);
             for k in 0..4 {
                 let sub = [quad[k], ho[q][k], ho[q][4], ho[q][(k + 3) % 4]];
                 let sj = scaled_jacobian(&sub.map(|v| mesh.vertices.positions[v as usize]), &n);

@@ -132,13 +132,13 @@ pub fn pillow_bad_quads(mesh: &mut QuadMesh, projector: &SurfaceProjector) -> Pi
 
 /// Whether quad `q` is inverted or degenerate (or not measurable).
 fn is_inverted(mesh: &QuadMesh, projector: &SurfaceProjector, q: u32) -> bool {
-    is_inverted_or_degenerate(quad_scaled_jacobian(&mesh.vertices, projector.surface, &mesh.quads[q as usize]))
+    is_inverted_or_degenerate(quad_scaled_jacobian(&mesh.vertices, projector.face_normals(), &mesh.quads[q as usize]))
 }
 
 /// Whether quad `q` is below [`ACCEPTED_SCALED_JACOBIAN`] (or not
 /// measurable).
 fn is_bad(mesh: &QuadMesh, projector: &SurfaceProjector, q: u32) -> bool {
-    let j = quad_scaled_jacobian(&mesh.vertices, projector.surface, &mesh.quads[q as usize]);
+    let j = quad_scaled_jacobian(&mesh.vertices, projector.face_normals(), &mesh.quads[q as usize]);
     is_inverted_or_degenerate(j) || j < ACCEPTED_SCALED_JACOBIAN
 }
 
@@ -189,7 +189,7 @@ fn repair_cluster(mesh: &mut QuadMesh, projector: &SurfaceProjector, cluster: &[
     let face = mesh.model_face_per_quad[cluster[0] as usize];
     let before = cluster
         .iter()
-        .map(|&q| quad_scaled_jacobian(&mesh.vertices, projector.surface, &mesh.quads[q as usize]))
+        .map(|&q| quad_scaled_jacobian(&mesh.vertices, projector.face_normals(), &mesh.quads[q as usize]))
         .fold(f64::INFINITY, f64::min);
     let mut best: Option<(usize, f64)> = None;
     let max_rings = if is_inverted_or_degenerate(before) { MAX_RINGS } else { MAX_RINGS_VALID };

@@ -64,6 +64,8 @@ pub struct SurfaceProjector<'a> {
     segment_per_edge: Vec<u32>,
     /// Per curve: arc length from its first vertex to each of its vertices.
     arc_length_per_curve_vertex: Vec<Vec<f64>>,
+    /// Unit normal of every input triangle ([`TriMesh::face_normals`]).
+    face_normals: Vec<Vec3>,
 }
 
 impl<'a> SurfaceProjector<'a> {
@@ -97,7 +99,17 @@ impl<'a> SurfaceProjector<'a> {
                 out
             })
             .collect();
-        Self { surface, topo, model, faces, index_per_curve_vertex, segment_per_edge, arc_length_per_curve_vertex }
+        let face_normals = surface.face_normals();
+        Self {
+            surface,
+            topo,
+            model,
+            faces,
+            index_per_curve_vertex,
+            segment_per_edge,
+            arc_length_per_curve_vertex,
+            face_normals,
+        }
     }
 
     /// The projection of `x` onto the entity `entity`: the closest point of
@@ -221,7 +233,12 @@ impl<'a> SurfaceProjector<'a> {
 
     /// Unit normal of the input triangle carrying `p`.
     pub fn normal_at(&self, p: &SurfacePoint) -> Vec3 {
-        self.surface.face_normal(p.face)
+        self.face_normals[p.face.idx()]
+    }
+
+    /// Unit normal of every input triangle, in triangle order.
+    pub fn face_normals(&self) -> &[Vec3] {
+        &self.face_normals
     }
 
     /// Barycentric coordinates of `p` (a point of triangle `f` or near it)

@@ -69,10 +69,11 @@ pub fn quad_quality(mesh: &QuadMesh, surface: &TriMesh) -> QuadQuality {
     let n = mesh.vertices.len();
     let pos = &mesh.vertices.positions;
     let corners = |q: &[u32; 4]| q.map(|v| pos[v as usize]);
+    let normals = surface.face_normals();
     let scaled: Vec<f64> = mesh
         .quads
         .iter()
-        .map(|q| surface_quad_scaled_jacobian(&corners(q), &quad_reference_normal(&mesh.vertices, surface, q)))
+        .map(|q| surface_quad_scaled_jacobian(&corners(q), &quad_reference_normal(&mesh.vertices, &normals, q)))
         .collect();
     let deviation: Vec<f64> = mesh.quads.iter().map(|q| max_angle_deviation_deg(&corners(q))).collect();
     let edge_uses = edge_uses(&mesh.quads);

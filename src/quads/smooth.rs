@@ -30,11 +30,10 @@ use std::time::Instant;
 use serde::Serialize;
 
 use super::error::QuadsError;
-use super::jacobian::{corner_of, scaled_jacobian_of_corners};
+use super::jacobian::{corner_of, scaled_jacobian_of_corners, scaled_jacobian_of_corners_until};
 use super::projection::{Projection, SurfaceProjector};
 use super::surface_mesh::{ModelEntity, QuadMesh, SurfaceVertices};
 use crate::geom::Vec3;
-use crate::mesh::TriMesh;
 use crate::progress::Progress;
 use rayon::prelude::*;
 
@@ -83,9 +82,9 @@ pub fn smooth(
     progress: &Progress,
 ) -> Result<SmoothStats, QuadsError> {
     let t = Instant::now();
-    let surface = projector.surface;
     let max_projection_distance = project_all(mesh, projector);
-    let (min_before, mean_before) = sj_summary(mesh, surface);
+    let mut sj = quad_scaled_jacobians(mesh, projector.face_normals());
+    let (min_before, mean_before) = sj_summary(&sj);
     let rings = Rings::new(mesh);
     let mut stats = SmoothStats {
         max_projection_distance,
@@ -95,7 +94,7 @@ pub fn smooth(
     };
     for sweep in 0..iterations {
         progress.check()?;
-        let (accepted, rejected) = sweep_once(mesh, projector, &rings);
+        let (accepted, rejected) = sweep_once(mesh, projector, &rings, &mut sj);
         stats.sweeps += 1;
         stats.moves_accepted += accepted;
         stats.moves_rejected += rejected;
@@ -104,23 +103,28 @@ pub fn smooth(
             break;
         }
     }
-    (stats.min_scaled_jacobian_after, stats.mean_scaled_jacobian_after) = sj_summary(mesh, surface);
+    (stats.min_scaled_jacobian_after, stats.mean_scaled_jacobian_after) = sj_summary(&sj);
     stats.seconds = t.elapsed().as_secs_f64();
     Ok(stats)
 }
 
 /// Scaled Jacobian of quad `quad` of `vertices` against the input surface's
-/// normal under it.
-pub fn quad_scaled_jacobian(vertices: &SurfaceVertices, surface: &TriMesh, quad: &[u32; 4]) -> f64 {
-    scaled_jacobian_of_corners(surface, &quad.map(|v| corner_of(vertices, v)))
+/// normal under it (`normals`: the unit normal of every input triangle,
+/// [`SurfaceProjector::face_normals`]).
+pub fn quad_scaled_jacobian(vertices: &SurfaceVertices, normals: &[Vec3], quad: &[u32; 4]) -> f64 {
+    scaled_jacobian_of_corners(normals, &quad.map(|v| corner_of(vertices, v)))
 }
 
-/// Worst and mean quad scaled Jacobian of `mesh` (`None` without quads).
-fn sj_summary(mesh: &QuadMesh, surface: &TriMesh) -> (Option<f64>, Option<f64>) {
-    if mesh.quads.is_empty() {
+/// Scaled Jacobian of every quad of `mesh`, in quad order.
+fn quad_scaled_jacobians(mesh: &QuadMesh, normals: &[Vec3]) -> Vec<f64> {
+    mesh.quads.par_iter().map(|q| quad_scaled_jacobian(&mesh.vertices, normals, q)).collect()
+}
+
+/// Worst and mean of the quads' scaled Jacobians `sj` (`None` without quads).
+fn sj_summary(sj: &[f64]) -> (Option<f64>, Option<f64>) {
+    if sj.is_empty() {
         return (None, None);
     }
-    let sj: Vec<f64> = mesh.quads.par_iter().map(|q| quad_scaled_jacobian(&mesh.vertices, surface, q)).collect();
     let min = sj.iter().copied().fold(f64::INFINITY, f64::min);
     (Some(min), Some(sj.iter().sum::<f64>() / sj.len() as f64))
 }
@@ -222,17 +226,22 @@ fn colour_classes(mesh: &QuadMesh, quads_of: &[Vec<u32>]) -> Vec<Vec<u32>> {
 }
 
 /// One Gauss–Seidel sweep, class by class; returns `(accepted, rejected)`
-/// move counts.
-fn sweep_once(mesh: &mut QuadMesh, projector: &SurfaceProjector, rings: &Rings) -> (u64, u64) {
+/// move counts. `sj` holds every quad's scaled Jacobian and is kept up to
+/// date: a move's guard has evaluated the moved vertex's quads at the new
+/// position, the same corners the quads then have.
+fn sweep_once(mesh: &mut QuadMesh, projector: &SurfaceProjector, rings: &Rings, sj: &mut [f64]) -> (u64, u64) {
     let (mut accepted, mut rejected) = (0, 0);
     for class in &rings.classes {
-        let decided: Vec<(Option<Projection>, u64)> =
-            class.par_iter().map(|&v| decide_move(mesh, projector, rings, v as usize)).collect();
+        let decided: Vec<(Option<Move>, u64)> =
+            class.par_iter().map(|&v| decide_move(mesh, projector, rings, sj, v as usize)).collect();
         for (&v, (moved, n_rejected)) in class.iter().zip(decided) {
             rejected += n_rejected;
-            if let Some(p) = moved {
-                mesh.vertices.positions[v as usize] = p.position;
-                mesh.vertices.on_surface[v as usize] = p.on_surface;
+            if let Some(Move { to, sj_after }) = moved {
+                mesh.vertices.positions[v as usize] = to.position;
+                mesh.vertices.on_surface[v as usize] = to.on_surface;
+                for (&q, after) in rings.quads[v as usize].iter().zip(sj_after) {
+                    sj[q as usize] = after;
+                }
                 accepted += 1;
             }
         }
@@ -240,27 +249,37 @@ fn sweep_once(mesh: &mut QuadMesh, projector: &SurfaceProjector, rings: &Rings) 
     (accepted, rejected)
 }
 
+/// An accepted move: where the vertex goes, and the scaled Jacobians its
+/// quads have there (in the order of its ring).
+struct Move {
+    to: Projection,
+    sj_after: Vec<f64>,
+}
+
 /// Where vertex `v` moves this sweep (the first step fraction the guard
 /// accepts; `None`: it stays) and how many fractions were rejected.
-fn decide_move(mesh: &QuadMesh, projector: &SurfaceProjector, rings: &Rings, v: usize) -> (Option<Projection>, u64) {
+fn decide_move(
+    mesh: &QuadMesh,
+    projector: &SurfaceProjector,
+    rings: &Rings,
+    sj: &[f64],
+    v: usize,
+) -> (Option<Move>, u64) {
     let Some(target) = smoothing_target(mesh, projector, rings, v) else { return (None, 0) };
     let x = mesh.vertices.positions[v];
     let ring = &rings.neighbours[v];
     let local: f64 =
         ring.iter().map(|&w| (mesh.vertices.positions[w as usize] - x).norm()).sum::<f64>() / ring.len().max(1) as f64;
     let quads = &rings.quads[v];
-    let before: Vec<f64> = quads
-        .iter()
-        .map(|&q| quad_scaled_jacobian(&mesh.vertices, projector.surface, &mesh.quads[q as usize]))
-        .collect();
+    let before: Vec<f64> = quads.iter().map(|&q| sj[q as usize]).collect();
     let mut rejected = 0;
     for f in STEP_FRACTIONS {
         let Some(candidate) = candidate_at(mesh, projector, v, &target, f) else { break };
         if (candidate.position - x).norm() <= MIN_STEP * local {
             break;
         }
-        if move_keeps_quality(mesh, projector.surface, quads, &before, v, &candidate) {
-            return (Some(candidate), rejected);
+        if let Some(sj_after) = quality_after_move(mesh, projector.face_normals(), quads, &before, v, &candidate) {
+            return (Some(Move { to: candidate, sj_after }), rejected);
         }
         rejected += 1;
     }
@@ -326,50 +345,55 @@ fn candidate_at(
     }
 }
 
-/// True when moving vertex `v` to `candidate` keeps the worst scaled
-/// Jacobian of `quads` (the quads around `v`, whose values now are
-/// `before`) from decreasing and makes no valid quad among them invalid.
-/// Nothing is moved: the quads are evaluated with `v`'s corner at the
-/// candidate.
-fn move_keeps_quality(
+/// The scaled Jacobians of `quads` (the quads around `v`, whose values now
+/// are `before`) with `v` moved to `candidate`, when the move keeps their
+/// worst from decreasing and makes no valid quad (scaled Jacobian > 0)
+/// invalid; `None` otherwise, as soon as one quad shows it. Nothing is
+/// moved: the quads are evaluated with `v`'s corner at the candidate.
+fn quality_after_move(
     mesh: &QuadMesh,
-    surface: &TriMesh,
+    normals: &[Vec3],
     quads: &[u32],
     before: &[f64],
     v: usize,
     candidate: &Projection,
-) -> bool {
-    let mut min_after = f64::INFINITY;
+) -> Option<Vec<f64>> {
+    let min_before = before.iter().copied().fold(f64::INFINITY, f64::min);
+    let mut after = Vec::with_capacity(quads.len());
     for (&q, &b) in quads.iter().zip(before) {
-        let after = quad_scaled_jacobian_with(&mesh.vertices, surface, &mesh.quads[q as usize], v as u32, candidate);
-        if b > 0.0 && after <= 0.0 {
-            return false;
+        // Below this the move is rejected whatever the exact value.
+        let floor = if b > 0.0 { min_before.max(0.0) } else { min_before };
+        let a = quad_scaled_jacobian_with(&mesh.vertices, normals, &mesh.quads[q as usize], v as u32, candidate, floor);
+        if (b > 0.0 && a <= 0.0) || a < min_before {
+            return None;
         }
-        min_after = min_after.min(after);
+        after.push(a);
     }
-    min_after >= before.iter().copied().fold(f64::INFINITY, f64::min)
+    Some(after)
 }
 
-/// [`quad_scaled_jacobian`] with vertex `v` (a corner of `quad`) at `at`.
+/// [`quad_scaled_jacobian`] with vertex `v` (a corner of `quad`) at `at`,
+/// exact unless it is below `floor`.
 fn quad_scaled_jacobian_with(
     vertices: &SurfaceVertices,
-    surface: &TriMesh,
+    normals: &[Vec3],
     quad: &[u32; 4],
     v: u32,
     at: &Projection,
+    floor: f64,
 ) -> f64 {
     let corners = quad.map(|w| {
         let (entity, on_surface, position) = corner_of(vertices, w);
         if w == v { (entity, at.on_surface, at.position) } else { (entity, on_surface, position) }
     });
-    scaled_jacobian_of_corners(surface, &corners)
+    scaled_jacobian_of_corners_until(normals, &corners, floor)
 }
 
 #[cfg(test)]
 pub(crate) mod tests {
     use super::*;
     use crate::atlas::features::detect_features;
-    use crate::mesh::{FaceId, Topology, fixtures};
+    use crate::mesh::{FaceId, Topology, TriMesh, fixtures};
     use crate::quads::model::{QuadModel, quad_model};
     use crate::quads::surface_mesh::SurfacePoint;
     use rand::rngs::StdRng;
@@ -513,7 +537,8 @@ pub(crate) mod tests {
     }
 
     fn all_sj(mesh: &QuadMesh, surface: &TriMesh) -> Vec<f64> {
-        mesh.quads.iter().map(|q| quad_scaled_jacobian(&mesh.vertices, surface, q)).collect()
+        let normals = surface.face_normals();
+        mesh.quads.iter().map(|q| quad_scaled_jacobian(&mesh.vertices, &normals, q)).collect()
     }
 
     #[test]
@@ -565,6 +590,7 @@ pub(crate) mod tests {
         jitter(&mut mesh, &mut rng, 0.3 / n as f64);
         project_all(&mut mesh, &proj);
         let rings = Rings::new(&mesh);
+        let normals = input.surface.face_normals();
         let (mut accepted, mut rejected) = (0, 0);
         for _ in 0..400 {
             let v = rng.random_range(0..mesh.vertices.len());
@@ -575,20 +601,24 @@ pub(crate) mod tests {
             let worst = |m: &QuadMesh| {
                 rings.quads[v]
                     .iter()
-                    .map(|&q| quad_scaled_jacobian(&m.vertices, &input.surface, &m.quads[q as usize]))
+                    .map(|&q| quad_scaled_jacobian(&m.vertices, &normals, &m.quads[q as usize]))
                     .fold(f64::INFINITY, f64::min)
             };
             let w0 = worst(&mesh);
             let before: Vec<f64> = rings.quads[v]
                 .iter()
-                .map(|&q| quad_scaled_jacobian(&mesh.vertices, &input.surface, &mesh.quads[q as usize]))
+                .map(|&q| quad_scaled_jacobian(&mesh.vertices, &normals, &mesh.quads[q as usize]))
                 .collect();
-            if move_keeps_quality(&mesh, &input.surface, &rings.quads[v], &before, v, &cand) {
+            if let Some(after) = quality_after_move(&mesh, &normals, &rings.quads[v], &before, v, &cand) {
                 accepted += 1;
                 mesh.vertices.positions[v] = cand.position;
                 mesh.vertices.on_surface[v] = cand.on_surface;
                 assert!(worst(&mesh) >= w0);
                 assert!(worst(&mesh) > 0.0);
+                // The values the guard returns are the moved quads' own.
+                for (&q, a) in rings.quads[v].iter().zip(after) {
+                    assert_eq!(quad_scaled_jacobian(&mesh.vertices, &normals, &mesh.quads[q as usize]), a);
+                }
             } else {
                 rejected += 1;
             }

@@ -110,7 +110,7 @@ impl RaiseStats {
 pub fn raise_worst_quads(mesh: &mut QuadMesh, projector: &SurfaceProjector) -> RaiseStats {
     let t = Instant::now();
     let sj = |mesh: &QuadMesh| -> Vec<f64> {
-        mesh.quads.iter().map(|q| quad_scaled_jacobian(&mesh.vertices, projector.surface, q)).collect()
+        mesh.quads.iter().map(|q| quad_scaled_jacobian(&mesh.vertices, projector.face_normals(), q)).collect()
     };
     let worst = |j: &[f64]| j.iter().copied().reduce(f64::min);
     let before = sj(mesh);
@@ -178,14 +178,15 @@ fn curve_neighbours(mesh: &QuadMesh, vertices: &[u32]) -> Vec<Vec<u32>> {
 pub(super) fn worst_of(mesh: &QuadMesh, projector: &SurfaceProjector, quads: &[u32]) -> f64 {
     quads
         .iter()
-        .map(|&q| quad_scaled_jacobian(&mesh.vertices, projector.surface, &mesh.quads[q as usize]))
+        .map(|&q| quad_scaled_jacobian(&mesh.vertices, projector.face_normals(), &mesh.quads[q as usize]))
         .fold(f64::INFINITY, f64::min)
 }
 
 /// How far `quads` fall short: the sum of their shortfalls below
 /// `threshold` and their worst scaled Jacobian.
 fn shortfall(mesh: &QuadMesh, projector: &SurfaceProjector, quads: &[u32], threshold: f64) -> (f64, f64) {
-    let sj = quads.iter().map(|&q| quad_scaled_jacobian(&mesh.vertices, projector.surface, &mesh.quads[q as usize]));
+    let sj =
+        quads.iter().map(|&q| quad_scaled_jacobian(&mesh.vertices, projector.face_normals(), &mesh.quads[q as usize]));
     sj.fold((0.0, f64::INFINITY), |(sum, worst), j| (sum + (threshold - j).max(0.0), worst.min(j)))
 }
 
