@@ -345,7 +345,13 @@ impl<'m, 'p> Cavities<'m, 'p> {
     /// grown in order. Returns whether a cavity was replaced; the result is
     /// the one-by-one result, whatever the thread count.
     fn batch(&mut self, range: std::ops::Range<u32>, stats: &mut CavityStats) -> bool {
-        let seeds: Vec<u32> = range.clone().filter(|&s| self.is_irregular_seed(s) && self.worth_retrying(s)).collect();
+        // Speculation only pays on a pool of two or more threads: on one it
+        // would grow every seed that finds a pattern twice.
+        let seeds: Vec<u32> = if rayon::current_num_threads() > 1 {
+            range.clone().filter(|&s| self.is_irregular_seed(s) && self.worth_retrying(s)).collect()
+        } else {
+            Vec::new()
+        };
         let (n_quads, n_vertices) = (self.mesh.quads.len(), self.mesh.vertices.len());
         let this = &*self;
         let guesses: Vec<Growth> = seeds
