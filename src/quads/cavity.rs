@@ -900,7 +900,7 @@ mod tests {
     /// Diamonds close enough that replacing one cavity changes the quads
     /// other seeds' failed growths read: batches of 256 seeds (growths tried side
     /// by side, then checked against what the replacements touched) give
-    /// the mesh that one seed at a time gives.
+    /// the mesh that one seed at a time gives, on any pool.
     #[test]
     fn batched_seeds_give_the_one_by_one_result() {
         let n = 16;
@@ -932,6 +932,12 @@ mod tests {
         );
         assert_eq!(batched.quads, one.quads);
         assert_eq!(batched.vertices.positions, one.vertices.positions);
+        // A one-thread pool grows every seed in order without speculating.
+        let pool = rayon::ThreadPoolBuilder::new().num_threads(1).build().unwrap();
+        let (alone, alone_stats) = pool.install(|| run(256));
+        assert_eq!((alone_stats.remeshed, alone_stats.passes), (one_stats.remeshed, one_stats.passes));
+        assert_eq!(alone.quads, one.quads);
+        assert_eq!(alone.vertices.positions, one.vertices.positions);
     }
 
     /// The `n × n` grid of the unit square with a diamond inserted at each
