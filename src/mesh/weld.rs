@@ -247,24 +247,46 @@ pub fn weld_exact(positions: &[Vec3]) -> (Vec<u32>, Vec<Vec3>) {
         first_index_of_equal_key(positions.len(), |i| Words(exact_key(&positions[i])))
     };
     let (new_index, kept) = dense_ids_of_firsts(&first);
-    (new_index, kept.iter().map(|&i| positions[i as usize]).collect())
+    (new_index, kept.par_iter().map(|&i| positions[i as usize]).collect())
 }
+
+/// Items per chunk of the parallel numbering of first occurrences.
+const DENSE_CHUNK: usize = 1 << 16;
 
 /// Dense ids `0..k`, numbered in order of first occurrence, from
 /// first-occurrence indices (`first[i] <= i`, `first[first[i]] == first[i]`).
-/// Returns the id of every item and the first item of every id.
+/// Returns the id of every item and the first item of every id. Chunk by
+/// chunk on the pool: each chunk lists its first occurrences, a running
+/// count gives each chunk its first id, and each chunk numbers its own.
 fn dense_ids_of_firsts(first: &[u32]) -> (Vec<u32>, Vec<u32>) {
+    let firsts_per_chunk: Vec<Vec<u32>> = first
+        .par_chunks(DENSE_CHUNK)
+        .enumerate()
+        .map(|(c, chunk)| {
+            let base = c * DENSE_CHUNK;
+            (base..base + chunk.len()).filter(|&i| first[i] as usize == i).map(|i| i as u32).collect()
+        })
+        .collect();
+    let mut start = 0u32;
+    let starts: Vec<u32> = firsts_per_chunk
+        .iter()
+        .map(|f| {
+            let s = start;
+            start += f.len() as u32;
+            s
+        })
+        .collect();
     // Only the entries of first occurrences are written and read.
     let mut id_of_first = vec![u32::MAX; first.len()];
-    let mut kept = Vec::new();
-    for (i, &f) in first.iter().enumerate() {
-        if f as usize == i {
-            id_of_first[i] = kept.len() as u32;
-            kept.push(i as u32);
-        }
-    }
+    id_of_first.par_chunks_mut(DENSE_CHUNK).zip(&firsts_per_chunk).zip(&starts).enumerate().for_each(
+        |(c, ((ids, firsts), &s))| {
+            for (k, &i) in firsts.iter().enumerate() {
+                ids[i as usize - c * DENSE_CHUNK] = s + k as u32;
+            }
+        },
+    );
     let new_index = first.par_iter().map(|&f| id_of_first[f as usize]).collect();
-    (new_index, kept)
+    (new_index, firsts_per_chunk.concat())
 }
 
 /// The grid of the tolerance weld: cells of size `h` from the box corner.
@@ -421,6 +443,28 @@ mod tests {
     use super::*;
     use rand::rngs::StdRng;
     use rand::{Rng, SeedableRng};
+
+    /// Numbered chunk by chunk, the ids are the one-pass numbering in order
+    /// of first occurrence, also where groups straddle chunks.
+    #[test]
+    fn dense_ids_over_many_chunks_are_numbered_in_order_of_first_occurrence() {
+        let mut rng = StdRng::seed_from_u64(3);
+        let n = 5 * DENSE_CHUNK + 123;
+        let keys: Vec<u32> = (0..n).map(|_| rng.random_range(0..150_000u32)).collect();
+        let mut first_of_key = std::collections::HashMap::new();
+        let first: Vec<u32> = (0..n).map(|i| *first_of_key.entry(keys[i]).or_insert(i as u32)).collect();
+        let (ids, kept) = dense_ids_of_firsts(&first);
+        let (mut want_ids, mut want_kept, mut id_of_key) = (Vec::new(), Vec::new(), std::collections::HashMap::new());
+        for (i, k) in keys.iter().enumerate() {
+            let id = *id_of_key.entry(k).or_insert_with(|| {
+                want_kept.push(i as u32);
+                want_kept.len() as u32 - 1
+            });
+            want_ids.push(id);
+        }
+        assert_eq!(ids, want_ids);
+        assert_eq!(kept, want_kept);
+    }
 
     /// Triangles `[3k, 3k + 1, 3k + 2]` over `n ≥ 3` points, the last one
     /// wrapping around to points 0 and 1: every point has an edge used once,
