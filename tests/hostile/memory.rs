@@ -181,9 +181,10 @@ async fn wait_in_frames(s: &Server, id: &str, after: Duration) {
 async fn cancel_stops_a_large_frames_job_within_a_second() {
     // One pool thread, so that the job still runs at the last cancel point.
     let s = Server::start(&["--threads", "1"]);
-    let params = r#"{"stages":["frames"],"frames":{"target_size":0.05}}"#;
-    // About 400k tets: volume meshing, then the MBO diffusions (PCG), in a debug build. The last
-    // cancel point stays well inside the job: on a quiet host frames ended before 7 s.
+    let params = r#"{"stages":["frames"],"frames":{"target_size":0.04}}"#;
+    // About 800k tets: volume meshing, then the MBO diffusions (PCG). The last cancel point
+    // stays well inside the job: frames takes about 10 s on one thread of a quiet host (at
+    // 0.05, 400k tets, it ended at 4.4 s, before the last cancel point).
     for after in [Duration::from_millis(300), Duration::from_millis(2500), Duration::from_millis(5000)] {
         let id = submit_ok(&s, "gmsh/sphere_3k.stl", params).await;
         wait_in_frames(&s, &id, after).await;
