@@ -16,14 +16,24 @@ use crate::geom::Vec3;
 /// Scaled Jacobian of each corner of the quad with corners `p`, measured
 /// against the unit normal `n` (0 for a corner with a zero-length edge).
 pub fn corner_scaled_jacobians(p: &[Vec3; 4], n: &Vec3) -> [f64; 4] {
-    let mut out = [0.0; 4];
-    for i in 0..4 {
+    corner_frames(p).map(|frame| corner_value(&frame, n))
+}
+
+/// Per corner `i` of the quad `p`: the cross product of its two edges
+/// `(p_{i+1} − p_i) × (p_{i−1} − p_i)` and the product of their lengths,
+/// what every normal's scaled Jacobian at that corner divides.
+fn corner_frames(p: &[Vec3; 4]) -> [(Vec3, f64); 4] {
+    std::array::from_fn(|i| {
         let a = p[(i + 1) % 4] - p[i];
         let b = p[(i + 3) % 4] - p[i];
-        let d = a.norm() * b.norm();
-        out[i] = if d > 0.0 { a.cross(&b).dot(n) / d } else { 0.0 };
-    }
-    out
+        (a.cross(&b), a.norm() * b.norm())
+    })
+}
+
+/// Scaled Jacobian of one corner ([`corner_frames`]) against the unit
+/// normal `n` (0 for a corner with a zero-length edge).
+fn corner_value((cross, d): &(Vec3, f64), n: &Vec3) -> f64 {
+    if *d > 0.0 { cross.dot(n) / d } else { 0.0 }
 }
 
 /// The quad's scaled Jacobian: the minimum over its corners.
@@ -62,18 +72,10 @@ pub fn surface_quad_scaled_jacobian(p: &[Vec3; 4], n: &Vec3) -> f64 {
 /// [`surface_quad_scaled_jacobian`], stopping as soon as a normal puts the
 /// quad below `floor`: the value returned is then only known to be below
 /// `floor` (a guard that rejects anything below it needs no more). The
-/// corners' cross products and edge-length products are formed once for
-/// the six normals, the same arithmetic as [`scaled_jacobian`].
+/// corners' frames ([`corner_frames`]) are formed once for the six normals.
 pub fn surface_quad_scaled_jacobian_until(p: &[Vec3; 4], n: &Vec3, floor: f64) -> f64 {
-    let corner = |i: usize| {
-        let a = p[(i + 1) % 4] - p[i];
-        let b = p[(i + 3) % 4] - p[i];
-        (a.cross(&b), a.norm() * b.norm())
-    };
-    let corners = [corner(0), corner(1), corner(2), corner(3)];
-    let against = |unit: &Vec3| {
-        corners.iter().map(|(c, d)| if *d > 0.0 { c.dot(unit) / d } else { 0.0 }).fold(f64::INFINITY, f64::min)
-    };
+    let corners = corner_frames(p);
+    let against = |unit: &Vec3| corners.iter().map(|c| corner_value(c, unit)).fold(f64::INFINITY, f64::min);
     let mut worst = against(n);
     if worst < floor {
         return worst;
@@ -153,11 +155,10 @@ mod tests {
     /// Stopped early only below the floor, exact otherwise.
     #[test]
     fn the_early_stop_is_exact_above_the_floor_and_below_it_when_stopped() {
-        let mut seed = 7u64;
-        let mut r = || {
-            seed = seed.wrapping_mul(6364136223846793005).wrapping_add(1442695040888963407);
-            (seed >> 11) as f64 / (1u64 << 53) as f64 - 0.5
-        };
+        use rand::rngs::StdRng;
+        use rand::{Rng, SeedableRng};
+        let mut rng = StdRng::seed_from_u64(7);
+        let mut r = || rng.random_range(-0.5..0.5);
         let n = Vec3::new(0.1, -0.2, 1.0).normalize();
         for _ in 0..2000 {
             let mut p = square();

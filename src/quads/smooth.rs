@@ -322,14 +322,13 @@ fn decide_move(
     let local: f64 =
         ring.iter().map(|&w| (mesh.vertices.positions[w as usize] - x).norm()).sum::<f64>() / ring.len().max(1) as f64;
     let quads = &rings.quads[v];
-    let before: Vec<f64> = quads.iter().map(|&q| sj[q as usize]).collect();
     let mut rejected = 0;
     for f in STEP_FRACTIONS {
         let Some(candidate) = candidate_at(mesh, projector, v, &target, f) else { break };
         if (candidate.position - x).norm() <= MIN_STEP * local {
             break;
         }
-        if let Some(sj_after) = quality_after_move(mesh, projector.face_normals(), quads, &before, v, &candidate) {
+        if let Some(sj_after) = quality_after_move(mesh, projector.face_normals(), quads, sj, v, &candidate) {
             return (Some(Move { to: candidate, sj_after }), rejected);
         }
         rejected += 1;
@@ -396,22 +395,24 @@ fn candidate_at(
     }
 }
 
-/// The scaled Jacobians of `quads` (the quads around `v`, whose values now
-/// are `before`) with `v` moved to `candidate`, when the move keeps their
-/// worst from decreasing and makes no valid quad (scaled Jacobian > 0)
-/// invalid; `None` otherwise, as soon as one quad shows it. Nothing is
-/// moved: the quads are evaluated with `v`'s corner at the candidate.
+/// The scaled Jacobians of `quads` (the quads around `v`; `sj` holds every
+/// quad's value now) with `v` moved to `candidate`, when the move keeps
+/// their worst from decreasing and makes no valid quad (one whose scaled
+/// Jacobian is positive) invalid; `None` otherwise, as soon as one quad
+/// shows it. Nothing is moved: the quads are evaluated with `v`'s corner
+/// at the candidate.
 fn quality_after_move(
     mesh: &QuadMesh,
     normals: &[Vec3],
     quads: &[u32],
-    before: &[f64],
+    sj: &[f64],
     v: usize,
     candidate: &Projection,
 ) -> Option<Vec<f64>> {
-    let min_before = before.iter().copied().fold(f64::INFINITY, f64::min);
+    let min_before = quads.iter().map(|&q| sj[q as usize]).fold(f64::INFINITY, f64::min);
     let mut after = Vec::with_capacity(quads.len());
-    for (&q, &b) in quads.iter().zip(before) {
+    for &q in quads {
+        let b = sj[q as usize];
         // Below this the move is rejected whatever the exact value.
         let floor = if b > 0.0 { min_before.max(0.0) } else { min_before };
         let a = quad_scaled_jacobian_with(&mesh.vertices, normals, &mesh.quads[q as usize], v as u32, candidate, floor);
@@ -578,6 +579,14 @@ pub(crate) mod tests {
         mesh.vertices.positions.iter().map(|p| p.z.abs()).fold(0.0, f64::max)
     }
 
+    /// The `n × n` grid of the unit square with its face vertices moved by
+    /// up to `fraction` of a cell along x and y ([`jitter`]).
+    fn jittered_grid(input: &Input, n: usize, rng: &mut StdRng, fraction: f64) -> QuadMesh {
+        let mut mesh = grid_mesh(input, n, n, false, |i, j| Vec3::new(i as f64 / n as f64, j as f64 / n as f64, 0.0));
+        jitter(&mut mesh, rng, fraction / n as f64);
+        mesh
+    }
+
     fn jitter(mesh: &mut QuadMesh, rng: &mut StdRng, amount: f64) {
         for v in 0..mesh.vertices.len() {
             if matches!(mesh.vertices.entity[v], ModelEntity::Face(_)) {
@@ -597,9 +606,8 @@ pub(crate) mod tests {
         let input = Input::new(fixtures::square(8));
         let proj = input.projector();
         let n = 10;
-        let mut mesh = grid_mesh(&input, n, n, false, |i, j| Vec3::new(i as f64 / n as f64, j as f64 / n as f64, 0.0));
         let mut rng = StdRng::seed_from_u64(13);
-        jitter(&mut mesh, &mut rng, 0.35 / n as f64);
+        let mut mesh = jittered_grid(&input, n, &mut rng, 0.35);
         project_all(&mut mesh, &proj);
         let fixed: Vec<(usize, Vec3)> = (0..mesh.vertices.len())
             .filter(|&v| matches!(mesh.vertices.entity[v], ModelEntity::Corner(_)))
@@ -636,9 +644,8 @@ pub(crate) mod tests {
         let input = Input::new(fixtures::square(6));
         let proj = input.projector();
         let n = 6;
-        let mut mesh = grid_mesh(&input, n, n, false, |i, j| Vec3::new(i as f64 / n as f64, j as f64 / n as f64, 0.0));
         let mut rng = StdRng::seed_from_u64(21);
-        jitter(&mut mesh, &mut rng, 0.3 / n as f64);
+        let mut mesh = jittered_grid(&input, n, &mut rng, 0.3);
         project_all(&mut mesh, &proj);
         let rings = Rings::new(&mesh);
         let normals = input.surface.face_normals();
@@ -656,11 +663,8 @@ pub(crate) mod tests {
                     .fold(f64::INFINITY, f64::min)
             };
             let w0 = worst(&mesh);
-            let before: Vec<f64> = rings.quads[v]
-                .iter()
-                .map(|&q| quad_scaled_jacobian(&mesh.vertices, &normals, &mesh.quads[q as usize]))
-                .collect();
-            if let Some(after) = quality_after_move(&mesh, &normals, &rings.quads[v], &before, v, &cand) {
+            let sj = quad_scaled_jacobians(&mesh, &normals);
+            if let Some(after) = quality_after_move(&mesh, &normals, &rings.quads[v], &sj, v, &cand) {
                 accepted += 1;
                 mesh.vertices.positions[v] = cand.position;
                 mesh.vertices.on_surface[v] = cand.on_surface;
@@ -750,12 +754,7 @@ pub(crate) mod tests {
         let input = Input::new(fixtures::square(5));
         let proj = input.projector();
         let n = 7;
-        let make = || {
-            let mut mesh =
-                grid_mesh(&input, n, n, false, |i, j| Vec3::new(i as f64 / n as f64, j as f64 / n as f64, 0.0));
-            jitter(&mut mesh, &mut StdRng::seed_from_u64(77), 0.3 / n as f64);
-            mesh
-        };
+        let make = || jittered_grid(&input, n, &mut StdRng::seed_from_u64(77), 0.3);
         let (mut a, mut b) = (make(), make());
         smooth(&mut a, &proj, 5, &Progress::none()).unwrap();
         smooth(&mut b, &proj, 5, &Progress::none()).unwrap();
@@ -771,8 +770,7 @@ pub(crate) mod tests {
         let input = Input::new(fixtures::square(5));
         let proj = input.projector();
         let n = 9;
-        let mut mesh = grid_mesh(&input, n, n, false, |i, j| Vec3::new(i as f64 / n as f64, j as f64 / n as f64, 0.0));
-        jitter(&mut mesh, &mut StdRng::seed_from_u64(5), 0.35 / n as f64);
+        let mut mesh = jittered_grid(&input, n, &mut StdRng::seed_from_u64(5), 0.35);
         project_all(&mut mesh, &proj);
         let rings = Rings::new(&mesh);
         let run = |keep: bool| {
